@@ -1,0 +1,18 @@
+// The relit command-line interface, callable from main() and from the Python module.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <string>
+#include <vector>
+
+namespace relit::cli {
+
+/// Runs the command line `args` (args[0] is the program name) and returns the process exit code.
+/// Errors are printed to stderr as "relit: error: ..." and give exit code 1 (2 for usage errors).
+int run(const std::vector<std::string>& args);
+
+// Each subcommand registers itself on the app; add new ones in cli.cpp.
+void add_devices_command(CLI::App& app);
+
+}  // namespace relit::cli

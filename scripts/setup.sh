@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Installs everything relit needs to build, test and run on Debian 12 (bookworm) or newer:
+# system libraries from Debian's packages and Python tools from PyPI into a virtual environment.
+# Idempotent: when everything is present it only checks, which takes about a second.
+#
+#   scripts/setup.sh            # packages + .venv in the repository root
+#   RELIT_VENV=/path scripts/setup.sh
+set -euo pipefail
+
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+venv="${RELIT_VENV:-$root/.venv}"
+
+# One line per job; --no-install-recommends keeps the set to ~0.7 GB instead of ~1.2 GB (Qt, gstreamer...).
+debian_packages=(
+  build-essential cmake ninja-build pkg-config git
+  ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo   # OpenCL ICD loader, C and C++ headers
+  pocl-opencl-icd                                                 # the portable CPU OpenCL driver
+  libclblast-dev                                                  # GEMMs and the benchmark peer
+  libopenimageio-dev openimageio-tools                            # EXR/PNG/HDR images
+  libeigen3-dev libopenblas-dev                                   # host math, references, BLAS peer
+  libgtest-dev libgmock-dev libbenchmark-dev                      # tests and benchmarks
+  pybind11-dev nlohmann-json3-dev libcli11-dev                    # binding, JSON, command line
+  libopenvdb-dev                                                  # OpenVDB volume import
+  python3-dev python3-venv python3-pip                            # Python headers and venv
+)
+
+missing=()
+for p in "${debian_packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing Debian packages: ${missing[*]}"
+  sudo_cmd=()
+  [ "$(id -u)" -eq 0 ] || sudo_cmd=(sudo)
+  export DEBIAN_FRONTEND=noninteractive
+  "${sudo_cmd[@]}" apt-get update -qq
+  "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# A virtual environment keeps the Python tools away from the system's packages (PEP 668).
+python_tools=(numpy pytest scikit-build-core pybind11 scikit-image)
+if [ ! -x "$venv/bin/python" ]; then
+  echo "setup: creating Python virtual environment $venv"
+  python3 -m venv "$venv"
+fi
+if ! "$venv/bin/python" - "${python_tools[@]}" <<'PY' 2>/dev/null
+import importlib.util, sys
+names = {"scikit-build-core": "scikit_build_core", "scikit-image": "skimage"}
+sys.exit(any(importlib.util.find_spec(names.get(n, n)) is None for n in sys.argv[1:]))
+PY
+then
+  echo "setup: installing Python packages: ${python_tools[*]}"
+  "$venv/bin/python" -m pip install -q --disable-pip-version-check "${python_tools[@]}"
+fi
+echo "setup: ok (python: $venv/bin/python)"
