@@ -1,0 +1,27 @@
+"""relit: neural relightable participating media on OpenCL.
+
+    import relit
+    relit.devices()                    # every OpenCL device
+    dev = relit.Device.select("cpu")   # or RELIT_DEVICE=..., as pyopencl's PYOPENCL_CTX
+"""
+from ._core import (  # noqa: F401
+    BuildError,
+    ClError,
+    ConfigError,
+    Device,
+    DeviceError,
+    DeviceInfo,
+    Error,
+    InvalidArgument,
+    IOError,
+    Program,
+    ProgramCheck,
+    __version__,
+    devices,
+    set_log_level,
+)
+
+__all__ = [
+    "BuildError", "ClError", "ConfigError", "Device", "DeviceError", "DeviceInfo", "Error", "InvalidArgument",
+    "IOError", "Program", "ProgramCheck", "__version__", "devices", "set_log_level",
+]

@@ -1,0 +1,21 @@
+# `pip install .` (no build isolation: the set-up script put scikit-build-core and pybind11 in the venv)
+# into a throw-away target folder; then the installed package must import, list devices and run its CLI.
+file(REMOVE_RECURSE "${WORK_DIR}")
+function(run)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err
+                  WORKING_DIRECTORY "${WORK_DIR}")
+  message("${out}${err}")
+  if(NOT code EQUAL 0)
+    message(FATAL_ERROR "failed (${code}): ${ARGN}")
+  endif()
+  set(last_output "${out}" PARENT_SCOPE)
+endfunction()
+file(MAKE_DIRECTORY "${WORK_DIR}")
+run("${PYTHON}" -m pip install --quiet --disable-pip-version-check --no-build-isolation --no-deps
+    --target "${WORK_DIR}/site" "${SOURCE_DIR}")
+set(ENV{PYTHONPATH} "${WORK_DIR}/site")
+run("${PYTHON}" -c "import relit; d = relit.devices(); print(d); assert d, 'no devices'")
+run("${PYTHON}" -m relit devices)
+if(NOT last_output MATCHES "relit kernels +build OK")
+  message(FATAL_ERROR "python -m relit devices did not report that the kernels build")
+endif()

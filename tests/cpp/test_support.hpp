@@ -1,0 +1,69 @@
+// Helpers shared by the C++ tests.
+#pragma once
+
+#include <relit/relit.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace relit::test {
+
+/// The devices under test: RELIT_TEST_DEVICES (a selector, like RELIT_DEVICE) or every device.
+/// Throws (failing the test) when there is none: the suite must never pass without a device.
+inline std::vector<Device> devices_under_test() {
+  const char* sel = std::getenv("RELIT_TEST_DEVICES");
+  return Device::select_all(sel ? sel : "all");
+}
+
+/// The first device under test.
+inline Device test_device() { return devices_under_test().front(); }
+
+/// Sets an environment variable for the lifetime of the object, restoring the old value after.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char* name, const std::optional<std::string>& value) : m_name(name) {
+    if (const char* old = std::getenv(name)) m_old = old;
+    if (value) ::setenv(name, value->c_str(), 1);
+    else ::unsetenv(name);
+  }
+  ~ScopedEnv() {
+    if (m_old) ::setenv(m_name, m_old->c_str(), 1);
+    else ::unsetenv(m_name);
+  }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  const char* m_name;
+  std::optional<std::string> m_old;
+};
+
+/// A fresh empty directory under the system temp dir, removed at destruction.
+class TempDir {
+ public:
+  explicit TempDir(const std::string& tag) {
+    m_path = std::filesystem::temp_directory_path() /
+             ("relit-test-" + tag + "-" + std::to_string(::getpid()) + "-" + std::to_string(counter()++));
+    std::filesystem::remove_all(m_path);
+    std::filesystem::create_directories(m_path);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(m_path, ec);
+  }
+  const std::filesystem::path& path() const { return m_path; }
+
+ private:
+  static int& counter() {
+    static int c = 0;
+    return c;
+  }
+  std::filesystem::path m_path;
+};
+
+}  // namespace relit::test
