@@ -45,6 +45,11 @@ struct DeviceInfo {
   bool has_extension(const std::string& name) const;
 };
 
+/// Smallest multiple of `multiple` that is >= value.
+constexpr std::size_t round_up(std::size_t value, std::size_t multiple) {
+  return multiple == 0 ? value : (value + multiple - 1) / multiple * multiple;
+}
+
 /// Every device of every OpenCL platform, in a stable order. Throws DeviceError when there is no OpenCL
 /// platform at all, naming the driver package to install.
 std::vector<DeviceInfo> list_devices();

@@ -86,9 +86,4 @@ class Kernel {
   std::string m_name;
 };
 
-/// Smallest multiple of `multiple` that is >= value.
-constexpr std::size_t round_up(std::size_t value, std::size_t multiple) {
-  return multiple == 0 ? value : (value + multiple - 1) / multiple * multiple;
-}
-
 }  // namespace relit

@@ -1,0 +1,10 @@
+// The parts of the Python module relit._core; each bind_*.cpp file binds one part of the library.
+#pragma once
+
+#include <pybind11/pybind11.h>
+
+namespace relit::python {
+
+void bind_cl(pybind11::module_& m);  // errors, devices, programs, logging, the CLI
+
+}  // namespace relit::python

@@ -1,0 +1,33 @@
+// The nn registries, filled on first use by each family's registration function.
+#include <relit/nn/registry.hpp>
+
+namespace relit::nn {
+
+const EncodingRegistry& encodings() {
+  static const EncodingRegistry registry = [] {
+    EncodingRegistry r("encoding", "Identity");
+    register_encodings(r);
+    return r;
+  }();
+  return registry;
+}
+
+const NetworkRegistry& networks() {
+  static const NetworkRegistry registry = [] {
+    NetworkRegistry r("network", "FullyFusedMLP");
+    register_networks(r);
+    return r;
+  }();
+  return registry;
+}
+
+std::unique_ptr<Encoding> create_encoding(const Json& json, std::uint32_t n_input_dims, const std::string& pointer) {
+  return encodings().create(json, pointer, n_input_dims);
+}
+
+std::unique_ptr<Network> create_network(const Json& json, std::uint32_t n_input_dims, std::uint32_t n_output_dims,
+                                        const std::string& pointer) {
+  return networks().create(json, pointer, n_input_dims, n_output_dims);
+}
+
+}  // namespace relit::nn
