@@ -5,6 +5,6 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${RELIT_BUILD_DIR:-$root/build}"
 "$root/scripts/setup.sh"
-"$root/scripts/build.sh" -DRELIT_BUILD_TESTS=ON -DRELIT_BUILD_PYTHON=ON -DRELIT_BUILD_APPS=ON
+"$root/scripts/build.sh" -DRELIT_BUILD_TESTS=ON -DRELIT_BUILD_PYTHON=ON -DRELIT_BUILD_APPS=ON -DRELIT_BUILD_BENCH=ON
 export POCL_CACHE_DIR="$build/pocl-cache"   # kernel binaries cached between runs, inside the build tree
 ctest --test-dir "$build" --output-on-failure --timeout 1500 "$@"
