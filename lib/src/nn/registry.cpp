@@ -21,6 +21,30 @@ const NetworkRegistry& networks() {
   return registry;
 }
 
+const LossRegistry& losses() {
+  static const LossRegistry registry = [] {
+    LossRegistry r("loss", "L2");
+    register_losses(r);
+    return r;
+  }();
+  return registry;
+}
+
+const OptimizerRegistry& optimizers() {
+  static const OptimizerRegistry registry = [] {
+    OptimizerRegistry r("optimizer", "Adam");
+    register_optimizers(r);
+    return r;
+  }();
+  return registry;
+}
+
+std::unique_ptr<Loss> create_loss(const Json& json, const std::string& pointer) { return losses().create(json, pointer); }
+
+std::unique_ptr<Optimizer> create_optimizer(const Json& json, const std::string& pointer) {
+  return optimizers().create(json, pointer);
+}
+
 std::unique_ptr<Encoding> create_encoding(const Json& json, std::uint32_t n_input_dims, const std::string& pointer) {
   return encodings().create(json, pointer, n_input_dims);
 }
