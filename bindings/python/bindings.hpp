@@ -6,5 +6,6 @@
 namespace relit::python {
 
 void bind_cl(pybind11::module_& m);  // errors, devices, programs, logging, the CLI
+void bind_nn(pybind11::module_& m);  // relit.nn: encodings, networks, losses, optimisers
 
 }  // namespace relit::python
