@@ -1,0 +1,297 @@
+// render.cl: the neural volume renderer of DESIGN §4.2 — stratified ray sampling, per-sample in-scattered
+// radiance (point light + SH indirect light), alpha compositing, and the backward passes of both.
+//
+// Samples are numbered s = ray * N_SAMPLES + i, so the 16 samples of a BatchMatrix tile all belong to one
+// ray (N_SAMPLES is a multiple of 16). Per-sample kernels work on one tile per work-item with float16 lanes
+// (one lane per sample: PoCL turns them into SIMD, GPUs see 16 coalesced loads); compositing is a short
+// scalar scan per ray.
+//
+// Ray record (RAY_FLOATS = 20 floats, float4-aligned):
+//   [ origin.xyz, t_near ][ direction.xyz, t_far ][ light_pos.xyz, 0 ][ intensity.rgb, 0 ][ background.rgb, 0 ]
+// Sample properties (BatchMatrix columns):
+//   0 sigma  1-3 albedo  4 g  5 visibility  6.. SH coefficients, channel-major: c[ch * N_SH + j]
+// Radiance (BatchMatrix, 3 columns): a_i ⊙ S_i, the light each sample sends toward the camera per unit
+// extinction-weighted density.
+//
+//   S_dir = p(w_o, w_l; g) V I / |p_l - x|^2
+//   S_ind = (4 pi / K) sum_k p(w_o, w_k; g) max(0, sum_j c_j Y_j(w_k))          (INDIRECT_MODE 0)
+// Directions point away from the sample (seed appendix A); w_o = -d. HG with the seed's +2g convention.
+#include "common.clh"
+
+#ifndef N_SAMPLES
+#define N_SAMPLES 64
+#endif
+#ifndef N_SH
+#define N_SH 36
+#endif
+#ifndef N_DIRS
+#define N_DIRS 64
+#endif
+#define RAY_FLOATS 20
+#define PROP_COLS (6 + 3 * N_SH)
+#define INV_4PI 0.07957747154594767f
+
+// Samples of one tile as float16: 16 consecutive floats of the tiled layout.
+#define TILE_COL(base, tile, cols, f) vload16(0, (base) + ((size_t)(tile) * (cols) + (f)) * 16)
+#define TILE_STORE(v, base, tile, cols, f) vstore16((v), 0, (base) + ((size_t)(tile) * (cols) + (f)) * 16)
+
+// HG phase and its derivative in g, for mu = w_o . w_i (both pointing away from the sample).
+inline float16 hg_phase(float16 g, float16 mu) {
+  const float16 d = fma(g, g, 1.0f) + 2.0f * g * mu;
+  const float16 r = rsqrt(d);
+  return INV_4PI * (1.0f - g * g) * r * r * r;
+}
+inline float16 hg_dphase_dg(float16 g, float16 mu) {
+  const float16 d = fma(g, g, 1.0f) + 2.0f * g * mu;
+  const float16 r = rsqrt(d);
+  const float16 r5 = r * r * r * r * r;
+  return INV_4PI * r5 * (-2.0f * g * d - 3.0f * (1.0f - g * g) * (g + mu));
+}
+
+// ---- sampling ---------------------------------------------------------------------------------------------
+
+// Intersects each ray with the box [-1, 1]^3, writes t_near/t_far into the ray record (0, 0 on a miss), and
+// places N_SAMPLES stratified samples: t_i = t_near + (i + u_i) (t_far - t_near) / N, u_i = 1/2 or jittered by
+// (seed, ray, i). delta_i spans the midpoints to the neighbouring samples. positions: BatchMatrix, 3 columns.
+__kernel void sample_rays(const uint n_rays, const uint jitter, const uint seed, __global float* restrict rays,
+                          __global float* restrict t_out, __global float* restrict delta_out,
+                          __global float* restrict positions) {
+  const uint r = get_global_id(0);
+  if (r >= n_rays) return;
+  __global float* ray = rays + (size_t)r * RAY_FLOATS;
+  const float3 o = (float3)(ray[0], ray[1], ray[2]);
+  const float3 d = (float3)(ray[4], ray[5], ray[6]);
+  const float3 inv = 1.0f / d;  // +-inf for axis-parallel rays: the slab test below handles it
+  const float3 t0 = (-1.0f - o) * inv, t1 = (1.0f - o) * inv;
+  const float3 lo = fmin(t0, t1), hi = fmax(t0, t1);
+  float tn = fmax(fmax(lo.x, lo.y), fmax(lo.z, 0.0f));
+  float tf = fmin(fmin(hi.x, hi.y), hi.z);
+  if (!(tf > tn)) tn = tf = 0.0f;
+  ray[3] = tn;
+  ray[7] = tf;
+  const float step = (tf - tn) / N_SAMPLES;
+  // Each sample stands for the interval between the midpoints to its neighbours (t_near and t_far at the
+  // ends), so the deltas tile [t_near, t_far] exactly: a homogeneous medium transmits exp(-sigma d).
+  float t_prev = 0.0f, lower = tn;
+  for (uint i = 0; i < N_SAMPLES; ++i) {
+    const float u = jitter ? relit_uniform(relit_hash2(seed, r * N_SAMPLES + i)) : 0.5f;
+    const float t = fma((float)i + u, step, tn);
+    const size_t s = (size_t)r * N_SAMPLES + i;
+    t_out[s] = t;
+    if (i > 0) {
+      const float mid = 0.5f * (t_prev + t);
+      delta_out[s - 1] = mid - lower;
+      lower = mid;
+    }
+    t_prev = t;
+    const float3 x = fma(t, d, o);
+    const size_t tile = s / 16, lane = s % 16;
+    positions[(tile * 3 + 0) * 16 + lane] = x.x;
+    positions[(tile * 3 + 1) * 16 + lane] = x.y;
+    positions[(tile * 3 + 2) * 16 + lane] = x.z;
+  }
+  delta_out[(size_t)r * N_SAMPLES + N_SAMPLES - 1] = tf - lower;
+}
+
+// ---- per-sample radiance ----------------------------------------------------------------------------------
+
+// Everything a tile's samples share or need, for forward and backward.
+typedef struct {
+  float3 wo;          // toward the camera
+  float16 g, vis;
+  float16 mu_l;       // w_o . w_l per sample
+  float16 direct;     // V I / r^2 without the colour: multiplies intensity.rgb
+  float3 intensity;
+} TileLight;
+
+inline TileLight tile_light(__global const float* ray, __global const float* t, __global const float* props,
+                            uint tile) {
+  TileLight L;
+  const float3 o = (float3)(ray[0], ray[1], ray[2]);
+  const float3 d = (float3)(ray[4], ray[5], ray[6]);
+  const float3 lp = (float3)(ray[8], ray[9], ray[10]);
+  L.intensity = (float3)(ray[12], ray[13], ray[14]);
+  L.wo = -d;
+  const float16 ts = vload16(0, t + (size_t)tile * 16);
+  // Vector from each sample to the light, per lane.
+  const float16 lx = lp.x - fma(ts, (float16)(d.x), (float16)(o.x));
+  const float16 ly = lp.y - fma(ts, (float16)(d.y), (float16)(o.y));
+  const float16 lz = lp.z - fma(ts, (float16)(d.z), (float16)(o.z));
+  const float16 r2 = fma(lx, lx, fma(ly, ly, lz * lz));
+  const float16 inv_r = rsqrt(r2);
+  L.mu_l = (L.wo.x * lx + L.wo.y * ly + L.wo.z * lz) * inv_r;
+  L.g = TILE_COL(props, tile, PROP_COLS, 4);
+  L.vis = TILE_COL(props, tile, PROP_COLS, 5);
+  L.direct = L.vis / r2;
+  return L;
+}
+
+// radiance = albedo ⊙ (S_dir + S_ind) for the 16 samples of each tile.
+__kernel void render_radiance(const uint n_tiles, __global const float* restrict rays, __global const float* restrict t,
+                              __global const float* restrict props, __global const float* restrict dirs,
+                              __global const float* restrict sh_basis, __global float* restrict radiance) {
+  const uint tile = get_global_id(0);
+  if (tile >= n_tiles) return;
+  const uint ray_index = tile / (N_SAMPLES / 16);
+  const TileLight L = tile_light(rays + (size_t)ray_index * RAY_FLOATS, t, props, tile);
+  const float16 p_l = hg_phase(L.g, L.mu_l) * L.direct;
+  float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
+#if N_SH > 0
+  float16 c[3 * N_SH];
+  for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
+  float16 i_r = 0.0f, i_g = 0.0f, i_b = 0.0f;
+  for (uint k = 0; k < N_DIRS; ++k) {
+    const float mu = L.wo.x * dirs[3 * k] + L.wo.y * dirs[3 * k + 1] + L.wo.z * dirs[3 * k + 2];
+    const float16 p = hg_phase(L.g, (float16)(mu));
+    __global const float* Y = sh_basis + (size_t)k * N_SH;
+    float16 lr = 0.0f, lg = 0.0f, lb = 0.0f;
+    for (uint j = 0; j < N_SH; ++j) {
+      const float y = Y[j];
+      lr = fma(c[j], y, lr);
+      lg = fma(c[N_SH + j], y, lg);
+      lb = fma(c[2 * N_SH + j], y, lb);
+    }
+    i_r = fma(p, fmax(lr, 0.0f), i_r);
+    i_g = fma(p, fmax(lg, 0.0f), i_g);
+    i_b = fma(p, fmax(lb, 0.0f), i_b);
+  }
+  const float w = 4.0f * M_PI_F / N_DIRS;
+  s_r = fma(i_r, w, s_r);
+  s_g = fma(i_g, w, s_g);
+  s_b = fma(i_b, w, s_b);
+#endif
+  TILE_STORE(TILE_COL(props, tile, PROP_COLS, 1) * s_r, radiance, tile, 3, 0);
+  TILE_STORE(TILE_COL(props, tile, PROP_COLS, 2) * s_g, radiance, tile, 3, 1);
+  TILE_STORE(TILE_COL(props, tile, PROP_COLS, 3) * s_b, radiance, tile, 3, 2);
+}
+
+// Given dL/d(radiance): dL/d(albedo), dL/dg and dL/d(SH coefficients) into d_props (columns 1..4 and 6..);
+// sigma's column is written by the compositing backward, visibility's is zero (gradient isolation).
+__kernel void render_radiance_backward(const uint n_tiles, __global const float* restrict rays,
+                                       __global const float* restrict t, __global const float* restrict props,
+                                       __global const float* restrict dirs, __global const float* restrict sh_basis,
+                                       __global const float* restrict d_radiance, __global float* restrict d_props) {
+  const uint tile = get_global_id(0);
+  if (tile >= n_tiles) return;
+  const uint ray_index = tile / (N_SAMPLES / 16);
+  const TileLight L = tile_light(rays + (size_t)ray_index * RAY_FLOATS, t, props, tile);
+  const float16 ar = TILE_COL(props, tile, PROP_COLS, 1), ag = TILE_COL(props, tile, PROP_COLS, 2),
+                ab = TILE_COL(props, tile, PROP_COLS, 3);
+  const float16 dr = TILE_COL(d_radiance, tile, 3, 0), dg = TILE_COL(d_radiance, tile, 3, 1),
+                db = TILE_COL(d_radiance, tile, 3, 2);
+  // Upstream gradient per channel on S (radiance = a ⊙ S).
+  const float16 er = dr * ar, eg = dg * ag, eb = db * ab;
+  const float16 dir_common = L.direct;
+  const float16 p_l = hg_phase(L.g, L.mu_l) * dir_common;
+  float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
+  float16 d_g = hg_dphase_dg(L.g, L.mu_l) * dir_common *
+                (er * L.intensity.x + eg * L.intensity.y + eb * L.intensity.z);
+#if N_SH > 0
+  float16 c[3 * N_SH];
+  float16 dc[3 * N_SH];
+  for (uint j = 0; j < 3 * N_SH; ++j) {
+    c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
+    dc[j] = 0.0f;
+  }
+  const float w = 4.0f * M_PI_F / N_DIRS;
+  float16 i_r = 0.0f, i_g = 0.0f, i_b = 0.0f;
+  for (uint k = 0; k < N_DIRS; ++k) {
+    const float mu = L.wo.x * dirs[3 * k] + L.wo.y * dirs[3 * k + 1] + L.wo.z * dirs[3 * k + 2];
+    const float16 p = hg_phase(L.g, (float16)(mu));
+    const float16 dp = hg_dphase_dg(L.g, (float16)(mu));
+    __global const float* Y = sh_basis + (size_t)k * N_SH;
+    float16 lr = 0.0f, lg = 0.0f, lb = 0.0f;
+    for (uint j = 0; j < N_SH; ++j) {
+      const float y = Y[j];
+      lr = fma(c[j], y, lr);
+      lg = fma(c[N_SH + j], y, lg);
+      lb = fma(c[2 * N_SH + j], y, lb);
+    }
+    const float16 pr = fmax(lr, 0.0f), pg = fmax(lg, 0.0f), pb = fmax(lb, 0.0f);
+    i_r = fma(p, pr, i_r);
+    i_g = fma(p, pg, i_g);
+    i_b = fma(p, pb, i_b);
+    d_g = fma(dp * w, er * pr + eg * pg + eb * pb, d_g);
+    // d/dc_j of max(0, L_k): Y_j where L_k > 0.
+    const float16 zero = 0.0f;
+    const float16 gr = select(zero, p * er * w, lr > 0.0f), gg = select(zero, p * eg * w, lg > 0.0f),
+                  gb = select(zero, p * eb * w, lb > 0.0f);
+    for (uint j = 0; j < N_SH; ++j) {
+      const float y = Y[j];
+      dc[j] = fma(gr, y, dc[j]);
+      dc[N_SH + j] = fma(gg, y, dc[N_SH + j]);
+      dc[2 * N_SH + j] = fma(gb, y, dc[2 * N_SH + j]);
+    }
+  }
+  s_r = fma(i_r, w, s_r);
+  s_g = fma(i_g, w, s_g);
+  s_b = fma(i_b, w, s_b);
+  for (uint j = 0; j < 3 * N_SH; ++j) TILE_STORE(dc[j], d_props, tile, PROP_COLS, 6 + j);
+#endif
+  TILE_STORE(dr * s_r, d_props, tile, PROP_COLS, 1);
+  TILE_STORE(dg * s_g, d_props, tile, PROP_COLS, 2);
+  TILE_STORE(db * s_b, d_props, tile, PROP_COLS, 3);
+  TILE_STORE(d_g, d_props, tile, PROP_COLS, 4);
+  TILE_STORE((float16)(0.0f), d_props, tile, PROP_COLS, 5);
+}
+
+// ---- compositing ------------------------------------------------------------------------------------------
+
+inline float tiled_at(__global const float* m, uint cols, size_t s, uint f) {
+  return m[((s / 16) * cols + f) * 16 + s % 16];
+}
+
+// color = sum_i T_i alpha_i radiance_i + T_N background, alpha_i = 1 - exp(-sigma_i delta_i).
+// Also writes the final transmittance per ray (alpha = 1 - T_N is the pixel's opacity).
+__kernel void composite(const uint n_rays, __global const float* restrict rays, __global const float* restrict delta,
+                        __global const float* restrict props, __global const float* restrict radiance,
+                        __global float* restrict color, __global float* restrict transmittance) {
+  const uint r = get_global_id(0);
+  if (r >= n_rays) return;
+  float T = 1.0f;
+  float3 c = 0.0f;
+  for (uint i = 0; i < N_SAMPLES; ++i) {
+    const size_t s = (size_t)r * N_SAMPLES + i;
+    const float alpha = 1.0f - exp(-tiled_at(props, PROP_COLS, s, 0) * delta[s]);
+    const float w = T * alpha;
+    c = fma((float3)(w), (float3)(tiled_at(radiance, 3, s, 0), tiled_at(radiance, 3, s, 1), tiled_at(radiance, 3, s, 2)), c);
+    T *= 1.0f - alpha;
+  }
+  __global const float* ray = rays + (size_t)r * RAY_FLOATS;
+  c = fma((float3)(T), (float3)(ray[16], ray[17], ray[18]), c);
+  vstore3(c, r, color);
+  transmittance[r] = T;
+}
+
+// Given dL/dcolor: dL/dsigma_i into d_props column 0 and dL/dradiance_i = w_i dL/dcolor.
+//   dC/dsigma_k = delta_k ( T_k (1 - alpha_k) c_k - sum_{i>k} w_i c_i - T_N bg )
+// The suffix sum is the total colour minus the running prefix, so one forward sweep suffices.
+__kernel void composite_backward(const uint n_rays, __global const float* restrict rays,
+                                 __global const float* restrict delta, __global const float* restrict props,
+                                 __global const float* restrict radiance, __global const float* restrict color,
+                                 __global const float* restrict d_color, __global float* restrict d_props,
+                                 __global float* restrict d_radiance) {
+  const uint r = get_global_id(0);
+  if (r >= n_rays) return;
+  const float3 C = vload3(r, color);
+  const float3 dC = vload3(r, d_color);
+  float T = 1.0f;
+  float3 prefix = 0.0f;
+  for (uint i = 0; i < N_SAMPLES; ++i) {
+    const size_t s = (size_t)r * N_SAMPLES + i;
+    const float d = delta[s];
+    const float alpha = 1.0f - exp(-tiled_at(props, PROP_COLS, s, 0) * d);
+    const float w = T * alpha;
+    const float3 ci = (float3)(tiled_at(radiance, 3, s, 0), tiled_at(radiance, 3, s, 1), tiled_at(radiance, 3, s, 2));
+    prefix = fma((float3)(w), ci, prefix);
+    const float3 suffix = C - prefix;  // sum_{i>k} w_i c_i + T_N bg
+    const float3 dsigma3 = d * (T * (1.0f - alpha) * ci - suffix);
+    const size_t base = (s / 16) * PROP_COLS * 16 + s % 16;
+    d_props[base] = dot(dsigma3, dC);
+    const size_t rbase = (s / 16) * 3 * 16 + s % 16;
+    d_radiance[rbase] = w * dC.x;
+    d_radiance[rbase + 16] = w * dC.y;
+    d_radiance[rbase + 32] = w * dC.z;
+    T *= 1.0f - alpha;
+  }
+}

@@ -1,0 +1,68 @@
+// VolumeRenderer: the neural volume renderer of DESIGN §4.2 (kernels/render.cl), forward and backward.
+//
+// The renderer does not know about networks: the method queries its networks at the sample positions the
+// renderer places, packs the results into one BatchMatrix of per-sample properties, and the renderer turns
+// them into pixel colours (and, backward, pixel-colour gradients into property gradients).
+//
+//   sample():   rays → t_near/t_far, stratified sample distances t, deltas, sample positions (BatchMatrix x 3)
+//   forward():  properties → per-sample radiance a ⊙ (S_dir + S_ind) → composited colour and transmittance
+//   backward(): dL/dcolour → dL/dproperties (sigma, albedo, g, SH coefficients; zero for visibility, whose
+//               network the render loss must not reach)
+//
+// Ray records are kRayFloats floats: origin, t_near, direction (unit), t_far, light position, 0, light RGB
+// intensity [W/sr], 0, background radiance, 0. Sample s = ray * n_samples + i.
+#pragma once
+
+#include <relit/cl/buffer.hpp>
+#include <relit/nn/batch.hpp>
+
+#include <cstdint>
+
+namespace relit::render {
+
+constexpr std::uint32_t kRayFloats = 20;
+
+/// Columns of the per-sample property matrix.
+enum PropColumn : std::uint32_t { kSigma = 0, kAlbedo = 1, kG = 4, kVisibility = 5, kSH = 6 };
+
+struct RendererSettings {
+  std::uint32_t n_samples = 64;  ///< samples per ray, a multiple of 16
+  int sh_lmax = 5;               ///< SH bands 0..sh_lmax for indirect light; -1: no indirect light
+  std::uint32_t n_dirs = 64;     ///< K, uniform directions of the indirect-light sum
+};
+
+class VolumeRenderer {
+ public:
+  VolumeRenderer(const Device& device, const RendererSettings& settings);
+
+  const RendererSettings& settings() const { return m_settings; }
+  /// (sh_lmax + 1)^2, or 0 without indirect light.
+  std::uint32_t n_sh() const { return m_n_sh; }
+  /// Columns of the property matrix: 6 + 3 n_sh.
+  std::uint32_t prop_cols() const { return 6 + 3 * m_n_sh; }
+
+  /// Intersects the rays with [-1, 1]^3 (writing t_near/t_far into the records) and places the samples.
+  /// `jitter` draws each sample uniformly in its stratum from (seed, ray, sample); otherwise stratum centres.
+  void sample(Buffer<float>& rays, std::uint32_t n_rays, bool jitter, std::uint32_t seed, Buffer<float>& t,
+              Buffer<float>& delta, nn::BatchMatrix& positions) const;
+
+  /// `dirs`: n_dirs unit directions (3 floats each); `sh_basis`: Y_j(dir_k), n_dirs x n_sh, row-major.
+  void forward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t, const Buffer<float>& delta,
+               const nn::BatchMatrix& props, const Buffer<float>& dirs, const Buffer<float>& sh_basis,
+               nn::BatchMatrix& radiance, Buffer<float>& color, Buffer<float>& transmittance) const;
+
+  /// Uses `radiance` and `color` from the forward call. Overwrites every column of `d_props`.
+  void backward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t, const Buffer<float>& delta,
+                const nn::BatchMatrix& props, const Buffer<float>& dirs, const Buffer<float>& sh_basis,
+                const nn::BatchMatrix& radiance, const Buffer<float>& color, const Buffer<float>& d_color,
+                nn::BatchMatrix& d_radiance, nn::BatchMatrix& d_props) const;
+
+ private:
+  void check(std::uint32_t n_rays, const nn::BatchMatrix& props, const char* what) const;
+  Device m_device;
+  RendererSettings m_settings;
+  std::uint32_t m_n_sh;
+  Defines m_defines;
+};
+
+}  // namespace relit::render

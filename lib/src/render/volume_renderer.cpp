@@ -1,0 +1,79 @@
+// VolumeRenderer: argument checks and kernel launches (the math is in kernels/render.cl).
+#include <relit/cl/program.hpp>
+#include <relit/render/volume_renderer.hpp>
+
+namespace relit::render {
+
+VolumeRenderer::VolumeRenderer(const Device& device, const RendererSettings& settings)
+    : m_device(device), m_settings(settings) {
+  if (settings.n_samples == 0 || settings.n_samples % nn::kBatchTile != 0 || settings.n_samples > 4096)
+    throw InvalidArgument("samples per ray must be a positive multiple of 16 up to 4096, got " +
+                          std::to_string(settings.n_samples));
+  if (settings.sh_lmax < -1 || settings.sh_lmax > 9)
+    throw InvalidArgument("sh_lmax must be in [-1, 9] (-1: no indirect light), got " + std::to_string(settings.sh_lmax));
+  if (settings.n_dirs == 0 || settings.n_dirs > 4096)
+    throw InvalidArgument("indirect-light directions must be in [1, 4096], got " + std::to_string(settings.n_dirs));
+  m_n_sh = settings.sh_lmax < 0 ? 0 : static_cast<std::uint32_t>((settings.sh_lmax + 1) * (settings.sh_lmax + 1));
+  m_defines = {{"N_SAMPLES", std::to_string(settings.n_samples)},
+               {"N_SH", std::to_string(m_n_sh)},
+               {"N_DIRS", std::to_string(settings.n_dirs)}};
+}
+
+void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, const char* what) const {
+  const std::uint64_t n = std::uint64_t(n_rays) * m_settings.n_samples;
+  if (props.batch() != n || props.cols() != prop_cols())
+    throw InvalidArgument(std::string("VolumeRenderer::") + what + ": properties are " + std::to_string(props.batch()) +
+                          "x" + std::to_string(props.cols()) + ", expected " + std::to_string(n) + "x" +
+                          std::to_string(prop_cols()) + " (rays x samples, 6 + 3 n_sh)");
+}
+
+void VolumeRenderer::sample(Buffer<float>& rays, std::uint32_t n_rays, bool jitter, std::uint32_t seed,
+                            Buffer<float>& t, Buffer<float>& delta, nn::BatchMatrix& positions) const {
+  const std::size_t n = std::size_t(n_rays) * m_settings.n_samples;
+  if (rays.size() < std::size_t(n_rays) * kRayFloats || t.size() < n || delta.size() < n || positions.cols() != 3)
+    throw InvalidArgument("VolumeRenderer::sample: buffers too small for " + std::to_string(n_rays) + " rays");
+  positions.resize(static_cast<std::uint32_t>(n));
+  m_device.kernel("render.cl", "sample_rays", m_defines)
+      .args(n_rays, std::uint32_t(jitter), seed, rays, t, delta, positions.data())
+      .launch(n_rays, 16);
+}
+
+void VolumeRenderer::forward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t,
+                             const Buffer<float>& delta, const nn::BatchMatrix& props, const Buffer<float>& dirs,
+                             const Buffer<float>& sh_basis, nn::BatchMatrix& radiance, Buffer<float>& color,
+                             Buffer<float>& transmittance) const {
+  check(n_rays, props, "forward");
+  if (dirs.size() < 3 * m_settings.n_dirs || sh_basis.size() < std::size_t(m_settings.n_dirs) * m_n_sh)
+    throw InvalidArgument("VolumeRenderer::forward: need " + std::to_string(m_settings.n_dirs) +
+                          " directions and their SH basis values");
+  if (color.size() < 3 * std::size_t(n_rays) || transmittance.size() < n_rays || radiance.cols() != 3)
+    throw InvalidArgument("VolumeRenderer::forward: output buffers too small");
+  radiance.resize(props.batch());
+  const auto n_tiles = static_cast<std::uint32_t>(props.batch() / nn::kBatchTile);
+  m_device.kernel("render.cl", "render_radiance", m_defines)
+      .args(n_tiles, rays, t, props.data(), dirs, sh_basis, radiance.data())
+      .launch(n_tiles, 16);
+  m_device.kernel("render.cl", "composite", m_defines)
+      .args(n_rays, rays, delta, props.data(), radiance.data(), color, transmittance)
+      .launch(n_rays, 16);
+}
+
+void VolumeRenderer::backward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t,
+                              const Buffer<float>& delta, const nn::BatchMatrix& props, const Buffer<float>& dirs,
+                              const Buffer<float>& sh_basis, const nn::BatchMatrix& radiance, const Buffer<float>& color,
+                              const Buffer<float>& d_color, nn::BatchMatrix& d_radiance, nn::BatchMatrix& d_props) const {
+  check(n_rays, props, "backward");
+  if (d_props.cols() != prop_cols() || d_radiance.cols() != 3 || d_color.size() < 3 * std::size_t(n_rays))
+    throw InvalidArgument("VolumeRenderer::backward: gradient buffers have the wrong shape");
+  d_props.resize(props.batch());
+  d_radiance.resize(props.batch());
+  const auto n_tiles = static_cast<std::uint32_t>(props.batch() / nn::kBatchTile);
+  m_device.kernel("render.cl", "composite_backward", m_defines)
+      .args(n_rays, rays, delta, props.data(), radiance.data(), color, d_color, d_props.data(), d_radiance.data())
+      .launch(n_rays, 16);
+  m_device.kernel("render.cl", "render_radiance_backward", m_defines)
+      .args(n_tiles, rays, t, props.data(), dirs, sh_basis, d_radiance.data(), d_props.data())
+      .launch(n_tiles, 16);
+}
+
+}  // namespace relit::render
