@@ -7,6 +7,7 @@ build="${RELIT_BUILD_DIR:-$root/build}"
 python="${RELIT_VENV:-$root/.venv}/bin/python"
 generator=()
 [ -f "$build/CMakeCache.txt" ] || { command -v ninja >/dev/null && generator=(-G Ninja); }
+mkdir -p "$build"
 cmake -S "$root" -B "$build" "${generator[@]}" -DCMAKE_BUILD_TYPE="${CMAKE_BUILD_TYPE:-Release}" \
-  -DPython3_EXECUTABLE="$python" "$@" >"$build.configure.log" 2>&1 || { cat "$build.configure.log"; exit 1; }
+  -DPython3_EXECUTABLE="$python" "$@" >"$build/configure.log" 2>&1 || { cat "$build/configure.log"; exit 1; }
 cmake --build "$build" --parallel "$(nproc)"
