@@ -7,5 +7,6 @@ namespace relit::python {
 
 void bind_cl(pybind11::module_& m);  // errors, devices, programs, logging, the CLI
 void bind_nn(pybind11::module_& m);  // relit.nn: encodings, networks, losses, optimisers
+void bind_metrics(pybind11::module_& m);  // relit.metrics: PSNR, SSIM
 
 }  // namespace relit::python

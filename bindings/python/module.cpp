@@ -8,4 +8,5 @@ PYBIND11_MODULE(_core, m) {
   m.attr("__version__") = relit::version();
   relit::python::bind_cl(m);  // first: the exception translators the other parts rely on
   relit::python::bind_nn(m);
+  relit::python::bind_metrics(m);
 }

@@ -4,7 +4,7 @@
     relit.devices()                    # every OpenCL device
     dev = relit.Device.select("cpu")   # or RELIT_DEVICE=..., as pyopencl's PYOPENCL_CTX
 """
-from . import nn  # noqa: F401
+from . import metrics, nn  # noqa: F401
 from ._core import (  # noqa: F401
     BuildError,
     ClError,
