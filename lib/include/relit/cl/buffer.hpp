@@ -29,7 +29,7 @@ constexpr const char* element_name() {
   if constexpr (std::is_same_v<T, float>) return "float";
   else if constexpr (std::is_same_v<T, double>) return "double";
   else if constexpr (std::is_same_v<T, int>) return "int";
-  else if constexpr (std::is_same_v<T, unsigned>) return "unsigned";
+  else if constexpr (std::is_same_v<T, unsigned>) return "uint";
   else if constexpr (std::is_same_v<T, unsigned char>) return "uchar";
   else return "element";
 }
