@@ -109,10 +109,12 @@ __kernel void hashgrid_forward(const uint n_tiles, __global const float* restric
 
   float16 acc[FEATS];
   for (int f = 0; f < FEATS; ++f) acc[f] = (float16)0.0f;
+#pragma unroll
   for (int c = 0; c < N_CORNERS; ++c) {
     uint ids[ENC_TILE];
     float vals[FEATS][ENC_TILE];
     vstore16(grid_index(cell, level, c), 0, ids);
+#pragma unroll
     for (int s = 0; s < ENC_TILE; ++s) {
       __global const float* entry = table + (size_t)ids[s] * FEATS;
       for (int f = 0; f < FEATS; ++f) vals[f][s] = entry[f];
