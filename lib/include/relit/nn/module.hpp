@@ -49,15 +49,29 @@ class Encoding : public Module {
 
   virtual std::unique_ptr<Workspace> make_workspace(const Device& device) const { (void)device; return nullptr; }
 
-  /// Encodes `input` (n_input_dims columns) into columns [out_col, out_col + n_output_dims) of `output`.
-  virtual void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
-                       std::uint32_t out_col, Workspace* workspace) const = 0;
+  /// Encodes columns [in_col, in_col + n_input_dims) of `input` into columns [out_col, out_col + n_output_dims)
+  /// of `output`. The column offsets let a Composite (and the renderer) read its inputs from, and assemble its
+  /// outputs into, one shared matrix without copies. `input` and `output` must have the same batch size.
+  virtual void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+                       BatchMatrix& output, std::uint32_t out_col, Workspace* workspace) const = 0;
 
   /// Given dL/d(output) in columns [out_col, ...) of `d_output`: writes dL/d(params) into `grads` (adds to it
-  /// when `accumulate`), and dL/d(input) into `d_input` when it is non-null (overwriting it).
-  virtual void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input,
+  /// when `accumulate`), and dL/d(input) into columns [in_col, in_col + n_input_dims) of `d_input` when it is
+  /// non-null (overwriting those columns).
+  virtual void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
                         const BatchMatrix& d_output, std::uint32_t out_col, ParamSlice grads, bool accumulate,
                         BatchMatrix* d_input, Workspace* workspace) const = 0;
+
+  /// The common case: `input` holds exactly the n_input_dims columns to encode (in_col = 0).
+  void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
+               std::uint32_t out_col, Workspace* workspace) const {
+    forward(device, params, input, 0, output, out_col, workspace);
+  }
+  void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input, const BatchMatrix& d_output,
+                std::uint32_t out_col, ParamSlice grads, bool accumulate, BatchMatrix* d_input,
+                Workspace* workspace) const {
+    backward(device, params, input, 0, d_output, out_col, grads, accumulate, d_input, workspace);
+  }
 };
 
 class Network : public Module {

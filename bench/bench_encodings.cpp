@@ -1,0 +1,291 @@
+// bench_encodings: throughput of the encodings on one device, results verified against double-precision
+// host references before anything is timed. Writes JSON (stdout, or --out FILE).
+//
+//   bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--out FILE]
+//
+// HashGrid target configuration (instant-ngp's NeRF grid, 3-D): 16 levels x 2 features, T = 2^19, base
+// resolution 16, finest 2048 (per_level_scale 2^(7/15)), batch 76,800 = 1200 rays x 64 samples in ray order.
+// --smoke: tiny sizes, verification only (exit 1 on a wrong result), as run by the test suite.
+#include <relit/nn/encodings.hpp>
+#include <relit/nn/registry.hpp>
+#include <relit/relit.hpp>
+#include <relit/sh.hpp>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <random>
+
+using namespace relit;
+using nn::BatchMatrix;
+using nn::HashGridEncoding;
+
+namespace {
+
+struct Args {
+  bool smoke = false;
+  std::string device, out;
+  std::uint32_t batch = 76800, reps = 15, log2_hashmap_size = 19;
+};
+
+// Samples along `batch / 64` random rays through the unit cube, 64 stratified samples each, in ray order
+// (how a renderer produces them).
+std::vector<float> ray_samples(std::uint32_t batch, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<float> x(static_cast<std::size_t>(batch) * 3);
+  const std::uint32_t per_ray = 64;
+  for (std::uint32_t r = 0; r * per_ray < batch; ++r) {
+    std::array<double, 3> a, b;
+    for (int d = 0; d < 3; ++d) a[d] = u(rng), b[d] = u(rng);
+    const int face = static_cast<int>(u(rng) * 3);  // start and end on opposite faces of the cube
+    a[face] = 0.0;
+    b[face] = 1.0;
+    for (std::uint32_t i = 0; i < per_ray && r * per_ray + i < batch; ++i) {
+      const double t = (i + u(rng)) / per_ray;
+      for (int d = 0; d < 3; ++d) x[(r * per_ray + i) * 3 + d] = static_cast<float>(a[d] + t * (b[d] - a[d]));
+    }
+  }
+  return x;
+}
+
+// Double reference of the hash grid (cells in float exactly as the kernel, weights and sums in double).
+template <class Visit>
+void grid_visit(const HashGridEncoding& enc, const float* x, Visit visit) {
+  const std::uint32_t dims = enc.n_input_dims(), F = enc.options().n_features_per_level;
+  for (std::uint32_t l = 0; l < enc.levels().size(); ++l) {
+    const auto& L = enc.levels()[l];
+    std::array<std::uint32_t, 3> cell{};
+    std::array<double, 3> frac{};
+    for (std::uint32_t d = 0; d < dims; ++d) {
+      const float p = std::fma(std::fmin(std::fmax(x[d], 0.0f), 1.0f), L.scale, 0.5f), f = std::floor(p);
+      cell[d] = static_cast<std::uint32_t>(f);
+      frac[d] = p - f;
+    }
+    for (std::uint32_t c = 0; c < (1u << dims); ++c) {
+      std::uint32_t index = 0, stride = 1;
+      double w = 1;
+      for (std::uint32_t d = 0; d < dims; ++d) {
+        const std::uint32_t v = cell[d] + ((c >> d) & 1);
+        if (L.hashed) index ^= v * HashGridEncoding::kPrimes[d];
+        else index += v * stride;
+        stride *= L.res;
+        w *= ((c >> d) & 1) ? frac[d] : 1 - frac[d];
+      }
+      if (L.hashed) index &= L.size - 1;
+      for (std::uint32_t f = 0; f < F; ++f) visit(l * F + f, L.offset + index * F + f, w);
+    }
+  }
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Median seconds of `reps` runs of f() + device.finish().
+template <class F>
+double median_time(const Device& device, std::uint32_t reps, F f) {
+  f();
+  device.finish();  // warm (first launch compiles the work-group function)
+  std::vector<double> t;
+  for (std::uint32_t i = 0; i < reps; ++i) {
+    const auto t0 = std::chrono::steady_clock::now();
+    f();
+    device.finish();
+    t.push_back(seconds_since(t0));
+  }
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2];
+}
+
+bool check(bool ok, const std::string& what, double error, Json& report) {
+  report["checks"].push_back({{"what", what}, {"max_error", error}, {"ok", ok}});
+  if (!ok) std::cerr << "bench_encodings: WRONG RESULT: " << what << " (max error " << error << ")\n";
+  return ok;
+}
+
+bool bench_hash_grid(const Device& device, const Args& a, Json& report) {
+  const Json cfg = {{"type", "HashGrid"},
+                    {"n_levels", 16},
+                    {"n_features_per_level", 2},
+                    {"log2_hashmap_size", a.smoke ? 14 : a.log2_hashmap_size},
+                    {"base_resolution", 16},
+                    {"per_level_scale", std::exp2(7.0 / 15.0)}};
+  auto base = nn::create_encoding(cfg, 3);
+  const auto& enc = dynamic_cast<const HashGridEncoding&>(*base);
+  std::vector<float> init(enc.n_params());
+  enc.initialize_params(init.data(), 1);
+  for (float& v : init) v *= 1e4f;  // O(1) values, so the check is meaningful
+  Buffer<float> params(device, init), grads(device, enc.n_params());
+  const std::vector<float> xs = ray_samples(a.batch, 2);
+  BatchMatrix in(device, a.batch, 3), out(device, a.batch, enc.n_output_dims()), d_out(device, a.batch, enc.n_output_dims());
+  in.upload_row_major(xs);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<float> g(static_cast<std::size_t>(a.batch) * enc.n_output_dims());
+  for (float& v : g) v = u(rng);
+  d_out.upload_row_major(g);
+
+  // Verify: forward on every sample, gradient of every parameter.
+  bool ok = true;
+  enc.forward(device, {&params, 0}, in, out, 0, nullptr);
+  enc.backward(device, {&params, 0}, in, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
+  const std::vector<float> got = out.download_row_major(), got_g = grads.read();
+  std::vector<double> ref_out(got.size(), 0.0), ref_g(enc.n_params(), 0.0);
+  const std::uint32_t cols = enc.n_output_dims();
+  for (std::uint32_t s = 0; s < a.batch; ++s)
+    grid_visit(enc, &xs[s * 3], [&](std::uint32_t col, std::uint32_t p, double w) {
+      ref_out[s * cols + col] += w * init[p];
+      ref_g[p] += w * g[s * cols + col];
+    });
+  double err = 0, gerr = 0, gscale = 0;
+  for (double v : ref_g) gscale = std::max(gscale, std::abs(v));
+  for (std::size_t i = 0; i < got.size(); ++i) err = std::max(err, std::abs(got[i] - ref_out[i]) / (1.0 + std::abs(ref_out[i])));  // table values are O(1)
+  for (std::size_t i = 0; i < got_g.size(); ++i)
+    gerr = std::max(gerr, std::abs(got_g[i] - ref_g[i]) / (std::abs(ref_g[i]) + 1e-3 * gscale));
+  ok &= check(err <= 1e-5, "HashGrid forward (relative to 1 + |value|)", err, report);
+  ok &= check(gerr <= 1e-4, "HashGrid parameter gradient (relative)", gerr, report);
+  if (!ok || a.smoke) return ok;
+
+  const double fwd = median_time(device, a.reps, [&] { enc.forward(device, {&params, 0}, in, out, 0, nullptr); });
+  const double bwd = median_time(device, a.reps, [&] {
+    enc.backward(device, {&params, 0}, in, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
+  });
+  const double both = median_time(device, a.reps, [&] {
+    enc.forward(device, {&params, 0}, in, out, 0, nullptr);
+    enc.backward(device, {&params, 0}, in, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
+  });
+  // Same grid, samples in random order over the cube (no ray coherence), for comparison.
+  std::vector<float> shuffled = xs;
+  for (float& v : shuffled) v = (u(rng) + 1) / 2;
+  BatchMatrix in_random(device, a.batch, 3);
+  in_random.upload_row_major(shuffled);
+  const double both_random = median_time(device, a.reps, [&] {
+    enc.forward(device, {&params, 0}, in_random, out, 0, nullptr);
+    enc.backward(device, {&params, 0}, in_random, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
+  });
+  report["hash_grid"] = {{"config", enc.hyperparams()},
+                         {"n_params", enc.n_params()},
+                         {"batch", a.batch},
+                         {"forward_samples_per_s", a.batch / fwd},
+                         {"backward_params_samples_per_s", a.batch / bwd},
+                         {"forward_backward_samples_per_s", a.batch / both},
+                         {"forward_backward_uniform_random_samples_per_s", a.batch / both_random},
+                         {"forward_ms", fwd * 1e3},
+                         {"backward_ms", bwd * 1e3},
+                         {"forward_backward_ms", both * 1e3}};
+  return ok;
+}
+
+bool bench_frequency_and_sh(const Device& device, const Args& a, Json& report) {
+  bool ok = true;
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<float> pos(static_cast<std::size_t>(a.batch) * 3), dir(pos.size());
+  for (float& v : pos) v = u(rng);
+  for (std::uint32_t s = 0; s < a.batch; ++s) {
+    double d[3] = {u(rng), u(rng), u(rng)};
+    const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) + 1e-12;
+    for (int i = 0; i < 3; ++i) dir[s * 3 + i] = static_cast<float>(d[i] / n);
+  }
+  BatchMatrix in_pos(device, a.batch, 3), in_dir(device, a.batch, 3), d_in(device, a.batch, 3);
+  in_pos.upload_row_major(pos);
+  in_dir.upload_row_major(dir);
+
+  for (std::uint32_t n_freq : {10u, 16u}) {
+    auto enc = nn::create_encoding({{"type", "Frequency"}, {"n_frequencies", n_freq}}, 3);
+    BatchMatrix out(device, a.batch, enc->n_output_dims()), d_out(device, a.batch, enc->n_output_dims());
+    enc->forward(device, {}, in_pos, out, 0, nullptr);
+    const std::vector<float> got = out.download_row_major();
+    double err = 0;
+    for (std::uint32_t s = 0; s < a.batch; ++s)
+      for (std::uint32_t d = 0; d < 3; ++d)
+        for (std::uint32_t k = 0; k < n_freq; ++k) {
+          const double arg = std::ldexp(static_cast<double>(pos[s * 3 + d]), static_cast<int>(k)) * M_PI;
+          const std::size_t o = static_cast<std::size_t>(s) * enc->n_output_dims() + d * 2 * n_freq + 2 * k;
+          err = std::max({err, std::abs(got[o] - std::sin(arg)), std::abs(got[o + 1] - std::cos(arg))});
+        }
+    ok &= check(err <= 1e-5, "Frequency n_frequencies=" + std::to_string(n_freq) + " (absolute)", err, report);
+    if (!ok || a.smoke) continue;
+    d_out.data().fill(1.0f);
+    const double fwd = median_time(device, a.reps, [&] { enc->forward(device, {}, in_pos, out, 0, nullptr); });
+    const double bwd = median_time(device, a.reps, [&] {
+      enc->backward(device, {}, in_pos, d_out, 0, {}, false, &d_in, nullptr);
+    });
+    report["frequency"].push_back({{"n_frequencies", n_freq}, {"n_input_dims", 3}, {"batch", a.batch},
+                                   {"forward_samples_per_s", a.batch / fwd},
+                                   {"backward_input_samples_per_s", a.batch / bwd},
+                                   {"max_abs_error_vs_double", err}});
+  }
+  for (std::uint32_t degree : {4u, 10u}) {
+    auto enc = nn::create_encoding({{"type", "SphericalHarmonics"}, {"degree", degree}}, 3);
+    BatchMatrix out(device, a.batch, enc->n_output_dims()), d_out(device, a.batch, enc->n_output_dims());
+    enc->forward(device, {}, in_dir, out, 0, nullptr);
+    const std::vector<float> got = out.download_row_major();
+    double err = 0;
+    for (std::uint32_t s = 0; s < a.batch; s += 7) {
+      const auto y = sh::eval(static_cast<int>(degree) - 1, {dir[s * 3], dir[s * 3 + 1], dir[s * 3 + 2]});
+      for (std::uint32_t i = 0; i < degree * degree; ++i)
+        err = std::max(err, std::abs(got[static_cast<std::size_t>(s) * degree * degree + i] - y[i]));
+    }
+    ok &= check(err <= 1e-5, "SphericalHarmonics degree=" + std::to_string(degree) + " (absolute)", err, report);
+    if (!ok || a.smoke) continue;
+    d_out.data().fill(1.0f);
+    const double fwd = median_time(device, a.reps, [&] { enc->forward(device, {}, in_dir, out, 0, nullptr); });
+    const double bwd = median_time(device, a.reps, [&] {
+      enc->backward(device, {}, in_dir, d_out, 0, {}, false, &d_in, nullptr);
+    });
+    report["spherical_harmonics"].push_back({{"degree", degree}, {"batch", a.batch},
+                                             {"forward_samples_per_s", a.batch / fwd},
+                                             {"backward_input_samples_per_s", a.batch / bwd}});
+  }
+  return ok;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args a;
+  for (int i = 1; i < argc; ++i) {
+    const std::string s = argv[i];
+    auto next = [&]() -> std::string {
+      if (i + 1 >= argc) throw InvalidArgument(s + " needs a value");
+      return argv[++i];
+    };
+    if (s == "--smoke") a.smoke = true;
+    else if (s == "--device") a.device = next();
+    else if (s == "--batch") a.batch = static_cast<std::uint32_t>(std::stoul(next()));
+    else if (s == "--reps") a.reps = static_cast<std::uint32_t>(std::stoul(next()));
+    else if (s == "--out") a.out = next();
+    else if (s == "--log2-hashmap-size") a.log2_hashmap_size = static_cast<std::uint32_t>(std::stoul(next()));
+    else {
+      std::cerr << "usage: bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--out FILE]\n";
+      return 2;
+    }
+  }
+  if (a.smoke) a.batch = 2048 + 77;  // not a multiple of the batch granularity
+  if (a.batch < 1 || a.reps < 1) {
+    std::cerr << "bench_encodings: --batch and --reps must be positive\n";
+    return 2;
+  }
+  try {
+    const Device device = Device::select(a.device);
+    Json report = {{"bench", "encodings"}, {"device", device.info().description()}, {"smoke", a.smoke},
+                   {"checks", Json::array()}};
+    bool ok = bench_hash_grid(device, a, report);
+    ok &= bench_frequency_and_sh(device, a, report);
+    report["ok"] = ok;
+    const std::string text = report.dump(2);
+    if (a.out.empty()) std::cout << text << "\n";
+    else std::ofstream(a.out) << text << "\n";
+    return ok ? 0 : 1;
+  } catch (const std::exception& e) {
+    std::cerr << "bench_encodings: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,205 @@
+// enc_hashgrid.cl: multiresolution hash encoding (Mueller et al. 2022, instant-ngp), forward, parameter
+// gradient and input gradient.
+//
+// Level l has a grid of LEVEL_RES[l] vertices per axis over [0, 1]^DIMS; a sample x (clamped to [0, 1])
+// sits at p = x * LEVEL_SCALE[l] + 0.5 in vertex units (tiny-cuda-nn's convention: the half-vertex shift
+// keeps the levels' grids from aligning at 0). Its cell's 2^DIMS corner vertices map to table entries:
+//   dense level (every vertex has its own entry):  index = sum_d v_d * LEVEL_RES^d
+//   hashed level (table of 2^k entries):           index = (XOR_d v_d * prime_d) & (LEVEL_SIZE - 1)
+// and the FEATS features of the entries are blended with d-linear weights. Parameters of one level:
+//   [entry 0: f0 .. f(FEATS-1)][entry 1: ...] ...  starting at LEVEL_OFFSET[l] (in floats) in the slice.
+// Output column out_col + l * FEATS + f holds level l's feature f.
+//
+// Work order: one work-item per (level, tile of 16 samples), level-major, so that the work-groups running
+// at one time all read the same level's table and it stays in cache ("one level for the whole batch").
+//
+// Parameter gradients are a scatter-add. OpenCL 1.2 has no float atomics, and a compare-and-swap loop on
+// the int view of a float is a locked instruction on a CPU: it serialises the cache misses that the
+// out-of-order core would otherwise overlap, and its result depends on the order of the additions. Here each
+// work-item *owns* a disjoint part of the table instead: the entries [lo, hi) of range r of level l, for
+// (level, range) = (gid / N_RANGES, gid % N_RANGES). It walks the whole batch in sample order and adds only
+// the contributions that fall into its range, with plain loads and stores. No atomics, no races, and every
+// entry receives its additions in the same order (tile, corner, lane) whatever N_RANGES and the device are:
+// the gradient is bit-for-bit reproducible. N_RANGES = 1 on CPUs (the levels alone keep the cores busy);
+// GPUs use more ranges for more parallelism, at the price of recomputing the corners once per range.
+#include "enc_common.clh"
+
+#ifndef DIMS
+#define DIMS 3
+#endif
+#ifndef FEATS
+#define FEATS 2
+#endif
+#ifndef N_LEVELS
+#define N_LEVELS 1
+#define LEVEL_SCALES {15.0f}
+#define LEVEL_RES {17u}
+#define LEVEL_SIZE {4920u}
+#define LEVEL_OFFSET {0u}
+#define LEVEL_HASHED {0u}
+#endif
+#ifndef N_RANGES
+#define N_RANGES 1
+#endif
+#if DIMS != 2 && DIMS != 3
+#error "DIMS must be 2 or 3"
+#endif
+
+#define N_CORNERS (1 << DIMS)
+
+__constant float level_scale[N_LEVELS] = LEVEL_SCALES;
+__constant uint level_res[N_LEVELS] = LEVEL_RES;
+__constant uint level_size[N_LEVELS] = LEVEL_SIZE;
+__constant uint level_offset[N_LEVELS] = LEVEL_OFFSET;
+__constant uint level_hashed[N_LEVELS] = LEVEL_HASHED;
+
+// instant-ngp's primes; the first is 1 so that the x-neighbours of a vertex stay close in memory.
+__constant uint grid_prime[3] = {1u, 2654435761u, 805459861u};
+
+// Cell and in-cell position of 16 samples at `level`.
+inline void grid_cell(const float16* x, uint level, uint16* cell, float16* frac) {
+  const float scale = level_scale[level];
+  for (int d = 0; d < DIMS; ++d) {
+    const float16 p = fma(fmin(fmax(x[d], 0.0f), 1.0f), (float16)scale, (float16)0.5f);
+    const float16 f = floor(p);
+    frac[d] = p - f;
+    cell[d] = convert_uint16(f);
+  }
+}
+
+// Table index of corner `c` (bit d of c: +1 along axis d).
+inline uint16 grid_index(const uint16* cell, uint level, int c) {
+  uint16 index = (uint16)0u;
+  if (level_hashed[level]) {
+    for (int d = 0; d < DIMS; ++d) index ^= (cell[d] + (uint)((c >> d) & 1)) * grid_prime[d];
+    index &= (uint16)(level_size[level] - 1u);
+  } else {
+    uint stride = 1u;
+    for (int d = 0; d < DIMS; ++d) {
+      index += (cell[d] + (uint)((c >> d) & 1)) * stride;
+      stride *= level_res[level];
+    }
+  }
+  return index;
+}
+
+inline float16 grid_weight(const float16* frac, int c) {
+  float16 w = (float16)1.0f;
+  for (int d = 0; d < DIMS; ++d) w *= ((c >> d) & 1) ? frac[d] : 1.0f - frac[d];
+  return w;
+}
+
+inline void load_inputs(__global const float* in, size_t t, uint in_cols, uint in_col, float16* x) {
+  for (int d = 0; d < DIMS; ++d) x[d] = enc_load(in, t, in_cols, in_col + d);
+}
+
+__kernel void hashgrid_forward(const uint n_tiles, __global const float* restrict params, const uint param_offset,
+                               __global const float* restrict in, const uint in_cols, const uint in_col,
+                               __global float* restrict out, const uint out_cols, const uint out_col) {
+  const size_t gid = get_global_id(0);
+  if (gid >= (size_t)n_tiles * N_LEVELS) return;
+  const uint level = (uint)(gid / n_tiles);
+  const size_t t = gid % n_tiles;
+  __global const float* table = params + param_offset + level_offset[level];
+
+  float16 x[DIMS], frac[DIMS];
+  uint16 cell[DIMS];
+  load_inputs(in, t, in_cols, in_col, x);
+  grid_cell(x, level, cell, frac);
+
+  float16 acc[FEATS];
+  for (int f = 0; f < FEATS; ++f) acc[f] = (float16)0.0f;
+#pragma unroll
+  for (int c = 0; c < N_CORNERS; ++c) {
+    uint ids[ENC_TILE];
+    float vals[FEATS][ENC_TILE];
+    vstore16(grid_index(cell, level, c), 0, ids);
+#pragma unroll
+    for (int s = 0; s < ENC_TILE; ++s) {
+      __global const float* entry = table + (size_t)ids[s] * FEATS;
+      for (int f = 0; f < FEATS; ++f) vals[f][s] = entry[f];
+    }
+    const float16 w = grid_weight(frac, c);
+    for (int f = 0; f < FEATS; ++f) acc[f] = fma(w, vload16(0, vals[f]), acc[f]);
+  }
+  for (int f = 0; f < FEATS; ++f) enc_store(out, t, out_cols, out_col + level * FEATS + f, acc[f]);
+}
+
+// dL/d(table): see the file comment for the ownership scheme. `n` = logical batch size: padding rows
+// contribute nothing, whatever their d_out holds.
+__kernel void hashgrid_backward_params(const uint n_tiles, const uint n, __global const float* restrict in,
+                                       const uint in_cols, const uint in_col, __global const float* restrict d_out,
+                                       const uint out_cols, const uint out_col, __global float* restrict grads,
+                                       const uint grad_offset) {
+  const size_t gid = get_global_id(0);
+  if (gid >= (size_t)N_LEVELS * N_RANGES) return;
+  const uint level = (uint)(gid / N_RANGES);
+  const uint range = (uint)(gid % N_RANGES);
+  const uint lo = (uint)(((ulong)level_size[level] * range) / N_RANGES);
+  const uint hi = (uint)(((ulong)level_size[level] * (range + 1)) / N_RANGES);
+  __global float* table = grads + grad_offset + level_offset[level];
+  const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+
+  for (size_t t = 0; t < n_tiles; ++t) {
+    float16 x[DIMS], frac[DIMS], g[FEATS];
+    uint16 cell[DIMS];
+    load_inputs(in, t, in_cols, in_col, x);
+    grid_cell(x, level, cell, frac);
+    const int16 valid = (int16)((int)t * ENC_TILE) + lane < (int16)((int)n);
+    for (int f = 0; f < FEATS; ++f)
+      g[f] = select((float16)0.0f, enc_load(d_out, t, out_cols, out_col + level * FEATS + f), valid);
+    for (int c = 0; c < N_CORNERS; ++c) {
+      uint ids[ENC_TILE];
+      float wg[FEATS][ENC_TILE];
+      vstore16(grid_index(cell, level, c), 0, ids);
+      const float16 w = grid_weight(frac, c);
+      for (int f = 0; f < FEATS; ++f) vstore16(w * g[f], 0, wg[f]);
+      for (int s = 0; s < ENC_TILE; ++s) {
+        const uint id = ids[s];
+        if (N_RANGES > 1 && (id < lo || id >= hi)) continue;
+        __global float* entry = table + (size_t)id * FEATS;
+        for (int f = 0; f < FEATS; ++f) entry[f] += wg[f][s];
+      }
+    }
+  }
+}
+
+// dL/dx = sum_levels sum_corners sum_f dL/dout_f * value_f * dw/dx; the clamp makes it 0 outside (0, 1).
+__kernel void hashgrid_backward_input(const uint n_tiles, __global const float* restrict params,
+                                      const uint param_offset, __global const float* restrict in, const uint in_cols,
+                                      const uint in_col, __global const float* restrict d_out, const uint out_cols,
+                                      const uint out_col, __global float* restrict d_in, const uint d_in_cols) {
+  const size_t t = get_global_id(0);
+  if (t >= n_tiles) return;
+  float16 x[DIMS], gx[DIMS];
+  load_inputs(in, t, in_cols, in_col, x);
+  for (int d = 0; d < DIMS; ++d) gx[d] = (float16)0.0f;
+  for (uint level = 0; level < N_LEVELS; ++level) {
+    __global const float* table = params + param_offset + level_offset[level];
+    float16 frac[DIMS], g[FEATS];
+    uint16 cell[DIMS];
+    grid_cell(x, level, cell, frac);
+    for (int f = 0; f < FEATS; ++f) g[f] = enc_load(d_out, t, out_cols, out_col + level * FEATS + f);
+    for (int c = 0; c < N_CORNERS; ++c) {
+      uint ids[ENC_TILE];
+      float vals[FEATS][ENC_TILE];
+      vstore16(grid_index(cell, level, c), 0, ids);
+      for (int s = 0; s < ENC_TILE; ++s) {
+        __global const float* entry = table + (size_t)ids[s] * FEATS;
+        for (int f = 0; f < FEATS; ++f) vals[f][s] = entry[f];
+      }
+      float16 gv = (float16)0.0f;  // dL/dw_c
+      for (int f = 0; f < FEATS; ++f) gv = fma(g[f], vload16(0, vals[f]), gv);
+      for (int d = 0; d < DIMS; ++d) {
+        float16 dw = ((c >> d) & 1) ? (float16)1.0f : (float16)-1.0f;  // d w_c / d frac_d
+        for (int e = 0; e < DIMS; ++e)
+          if (e != d) dw *= ((c >> e) & 1) ? frac[e] : 1.0f - frac[e];
+        gx[d] = fma((float16)level_scale[level] * dw, gv, gx[d]);
+      }
+    }
+  }
+  for (int d = 0; d < DIMS; ++d) {
+    const int16 inside = x[d] > 0.0f && x[d] < 1.0f;
+    enc_store(d_in, t, d_in_cols, in_col + d, select((float16)0.0f, gx[d], inside));
+  }
+}

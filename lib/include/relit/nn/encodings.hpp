@@ -1,0 +1,195 @@
+// The input encodings of the nn family (tiny-cuda-nn's set, in relit's tiled batch layout):
+//
+//   Identity            x -> scale * x + offset
+//   Frequency           NeRF positional encoding: sin, cos of 2^k pi x (double-angle recurrences)
+//   SphericalHarmonics  real SH of a unit direction (seed eq. 2), degree 1..10
+//   HashGrid            instant-ngp multiresolution hash encoding (trainable)
+//   Composite           nested encodings over consecutive input dims, outputs concatenated
+//
+// Each is an nn::Encoding (relit/nn/module.hpp): built from JSON by nn::create_encoding() (keys, defaults
+// and ranges in docs/encodings.md), or directly from its Options struct in C++. Every encoding writes its
+// n_output_dims() columns at any column offset of the output matrix, so a Composite (or the renderer)
+// assembles one MLP input matrix without copies.
+#pragma once
+
+#include <relit/nn/module.hpp>
+
+#include <array>
+#include <memory>
+#include <vector>
+
+namespace relit::nn {
+
+class IdentityEncoding final : public Encoding {
+ public:
+  struct Options {
+    float scale = 1.0f;
+    float offset = 0.0f;
+  };
+  IdentityEncoding(std::uint32_t n_input_dims, Options options);
+
+  std::string type() const override { return "Identity"; }
+  Json hyperparams() const override;
+  std::uint32_t n_params() const override { return 0; }
+  void initialize_params(float*, std::uint64_t) const override {}
+  std::uint32_t n_input_dims() const override { return m_dims; }
+  std::uint32_t n_output_dims() const override { return m_dims; }
+  using Encoding::backward;
+  using Encoding::forward;
+  void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+               BatchMatrix& output, std::uint32_t out_col, Workspace* workspace) const override;
+  void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+                const BatchMatrix& d_output, std::uint32_t out_col, ParamSlice grads, bool accumulate,
+                BatchMatrix* d_input, Workspace* workspace) const override;
+
+ private:
+  std::uint32_t m_dims;
+  Options m_options;
+};
+
+/// Per input dim i and octave k = 0..n_frequencies-1: sin(2^k pi x_i), cos(2^k pi x_i) (NeRF's convention:
+/// the highest frequency is 2^(n_frequencies-1), "max freq 2^9" means n_frequencies = 10). Output columns:
+/// [x_0..x_{d-1} if include_input], then for each dim i: sin k=0, cos k=0, sin k=1, cos k=1, ...
+class FrequencyEncoding final : public Encoding {
+ public:
+  struct Options {
+    std::uint32_t n_frequencies = 10;
+    bool include_input = false;
+  };
+  /// Octaves between exact re-evaluations of the double-angle recurrence (see kernels/enc_frequency.cl).
+  static constexpr std::uint32_t kAnchorInterval = 4;
+
+  FrequencyEncoding(std::uint32_t n_input_dims, Options options);
+
+  std::string type() const override { return "Frequency"; }
+  Json hyperparams() const override;
+  std::uint32_t n_params() const override { return 0; }
+  void initialize_params(float*, std::uint64_t) const override {}
+  std::uint32_t n_input_dims() const override { return m_dims; }
+  std::uint32_t n_output_dims() const override {
+    return m_dims * 2 * m_options.n_frequencies + (m_options.include_input ? m_dims : 0);
+  }
+  using Encoding::backward;
+  using Encoding::forward;
+  void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+               BatchMatrix& output, std::uint32_t out_col, Workspace* workspace) const override;
+  void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+                const BatchMatrix& d_output, std::uint32_t out_col, ParamSlice grads, bool accumulate,
+                BatchMatrix* d_input, Workspace* workspace) const override;
+
+ private:
+  Defines defines() const;
+  std::uint32_t m_dims;
+  Options m_options;
+};
+
+/// Real SH of a 3-D unit direction, bands l = 0..degree-1 (degree^2 outputs, column l*l + l + m), exactly
+/// as relit::sh::eval (relit/sh.hpp). The direction is not renormalised: pass unit vectors.
+class SphericalHarmonicsEncoding final : public Encoding {
+ public:
+  struct Options {
+    std::uint32_t degree = 4;
+  };
+  static constexpr std::uint32_t kMaxDegree = 10;
+
+  SphericalHarmonicsEncoding(std::uint32_t n_input_dims, Options options);
+
+  std::string type() const override { return "SphericalHarmonics"; }
+  Json hyperparams() const override;
+  std::uint32_t n_params() const override { return 0; }
+  void initialize_params(float*, std::uint64_t) const override {}
+  std::uint32_t n_input_dims() const override { return 3; }
+  std::uint32_t n_output_dims() const override { return m_options.degree * m_options.degree; }
+  using Encoding::backward;
+  using Encoding::forward;
+  void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+               BatchMatrix& output, std::uint32_t out_col, Workspace* workspace) const override;
+  void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+                const BatchMatrix& d_output, std::uint32_t out_col, ParamSlice grads, bool accumulate,
+                BatchMatrix* d_input, Workspace* workspace) const override;
+
+ private:
+  Options m_options;
+};
+
+/// Multiresolution hash encoding over [0, 1]^d, d = 2 or 3 (inputs outside are clamped). Output column
+/// level * n_features_per_level + f. See kernels/enc_hashgrid.cl for the exact grid convention.
+class HashGridEncoding final : public Encoding {
+ public:
+  struct Options {
+    std::uint32_t n_levels = 16;
+    std::uint32_t n_features_per_level = 2;
+    std::uint32_t log2_hashmap_size = 19;
+    std::uint32_t base_resolution = 16;
+    float per_level_scale = 2.0f;
+  };
+  /// One level's grid and its part of the parameter vector.
+  struct Level {
+    float scale;           ///< p = x * scale + 0.5 in vertex units
+    std::uint32_t res;     ///< vertices per axis
+    std::uint32_t size;    ///< table entries
+    std::uint32_t offset;  ///< first parameter of the level (floats)
+    bool hashed;           ///< false: one entry per vertex
+  };
+  static constexpr std::array<std::uint32_t, 3> kPrimes = {1u, 2654435761u, 805459861u};
+
+  HashGridEncoding(std::uint32_t n_input_dims, Options options);
+
+  std::string type() const override { return "HashGrid"; }
+  Json hyperparams() const override;
+  std::uint32_t n_params() const override { return m_n_params; }
+  /// Uniform in [-1e-4, 1e-4] (instant-ngp), from a counter-based hash of (seed, index).
+  void initialize_params(float* out, std::uint64_t seed) const override;
+  std::uint32_t n_input_dims() const override { return m_dims; }
+  std::uint32_t n_output_dims() const override { return m_options.n_levels * m_options.n_features_per_level; }
+  const std::vector<Level>& levels() const { return m_levels; }
+  const Options& options() const { return m_options; }
+  using Encoding::backward;
+  using Encoding::forward;
+  void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+               BatchMatrix& output, std::uint32_t out_col, Workspace* workspace) const override;
+  void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+                const BatchMatrix& d_output, std::uint32_t out_col, ParamSlice grads, bool accumulate,
+                BatchMatrix* d_input, Workspace* workspace) const override;
+  /// Table ranges per level in the parameter-gradient pass (1 on CPUs): the gradient is the same for any.
+  std::uint32_t gradient_ranges(const Device& device) const;
+
+ private:
+  Defines defines(const Device& device) const;
+  std::uint32_t m_dims;
+  Options m_options;
+  std::vector<Level> m_levels;
+  std::uint32_t m_n_params = 0;
+};
+
+/// Nested encodings, each over its n_dims_to_encode consecutive input dims (the last one may take "the
+/// rest"); outputs concatenated in order; parameters are the nested slices concatenated in order.
+class CompositeEncoding final : public Encoding {
+ public:
+  struct Part {
+    std::unique_ptr<Encoding> encoding;
+    std::uint32_t n_dims_to_encode;
+  };
+  CompositeEncoding(std::vector<Part> parts, Json resolved);
+
+  std::string type() const override { return "Composite"; }
+  Json hyperparams() const override { return m_resolved; }
+  std::uint32_t n_params() const override;
+  void initialize_params(float* out, std::uint64_t seed) const override;
+  std::uint32_t n_input_dims() const override;
+  std::uint32_t n_output_dims() const override;
+  const std::vector<Part>& parts() const { return m_parts; }
+  using Encoding::backward;
+  using Encoding::forward;
+  void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+               BatchMatrix& output, std::uint32_t out_col, Workspace* workspace) const override;
+  void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
+                const BatchMatrix& d_output, std::uint32_t out_col, ParamSlice grads, bool accumulate,
+                BatchMatrix* d_input, Workspace* workspace) const override;
+
+ private:
+  std::vector<Part> m_parts;
+  Json m_resolved;
+};
+
+}  // namespace relit::nn

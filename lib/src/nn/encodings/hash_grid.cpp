@@ -1,0 +1,153 @@
+// The HashGrid (multiresolution hash) encoding: level layout, initialisation and launches. The kernels and
+// the reasoning behind their work order and gradient scheme are in kernels/enc_hashgrid.cl.
+#include "common.hpp"
+
+#include <relit/nn/encodings.hpp>
+
+#include <cmath>
+#include <sstream>
+
+namespace relit::nn {
+
+namespace {
+
+std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+// "{a,b,c}" with each value printed by `print`: an OpenCL C array initialiser for a -D definition.
+template <class F>
+std::string initializer(const std::vector<HashGridEncoding::Level>& levels, F print) {
+  std::ostringstream s;
+  s << "{";
+  for (std::size_t i = 0; i < levels.size(); ++i) s << (i ? "," : "") << print(levels[i]);
+  s << "}";
+  return s.str();
+}
+
+}  // namespace
+
+HashGridEncoding::HashGridEncoding(std::uint32_t n_input_dims, Options o) : m_dims(n_input_dims), m_options(o) {
+  const std::string who = "HashGrid encoding: ";
+  if (n_input_dims != 2 && n_input_dims != 3)
+    throw InvalidArgument(who + "encodes 2-D or 3-D positions in [0, 1]^d, got " + std::to_string(n_input_dims) +
+                          " input dims");
+  if (o.n_levels < 1 || o.n_levels > 32) throw InvalidArgument(who + "n_levels must be in [1, 32]");
+  if (o.n_features_per_level != 1 && o.n_features_per_level != 2 && o.n_features_per_level != 4 &&
+      o.n_features_per_level != 8)
+    throw InvalidArgument(who + "n_features_per_level must be 1, 2, 4 or 8");
+  if (o.log2_hashmap_size < 10 || o.log2_hashmap_size > 24) throw InvalidArgument(who + "log2_hashmap_size must be in [10, 24]");
+  if (o.base_resolution < 2) throw InvalidArgument(who + "base_resolution must be at least 2");
+  if (!(o.per_level_scale >= 1.0f && o.per_level_scale <= 8.0f)) throw InvalidArgument(who + "per_level_scale must be in [1, 8]");
+
+  const std::uint64_t table = 1ull << o.log2_hashmap_size;
+  std::uint64_t offset = 0;
+  for (std::uint32_t l = 0; l < o.n_levels; ++l) {
+    const double scale = o.base_resolution * std::pow(static_cast<double>(o.per_level_scale), l) - 1.0;
+    // Positions are float: beyond ~2^22 vertices per axis the in-cell position loses all its bits.
+    if (scale > 4194304.0)
+      throw InvalidArgument(who + "level " + std::to_string(l) + " would have " + std::to_string(scale) +
+                            " cells per axis (more than 2^22, finer than float positions resolve); lower "
+                            "per_level_scale, base_resolution or n_levels");
+    Level level{};
+    level.scale = static_cast<float>(scale);
+    // floor(x * scale + 0.5) + 1 <= ceil(scale) + 1: every corner has its own vertex (no wrap-around).
+    level.res = static_cast<std::uint32_t>(std::ceil(level.scale)) + 2;
+    const double vertices = std::pow(static_cast<double>(level.res), n_input_dims);
+    level.hashed = vertices > static_cast<double>(table);
+    level.size = level.hashed ? static_cast<std::uint32_t>(table)
+                              : static_cast<std::uint32_t>(round_up(static_cast<std::uint64_t>(vertices), 8));
+    level.offset = static_cast<std::uint32_t>(offset);
+    offset += static_cast<std::uint64_t>(level.size) * o.n_features_per_level;
+    if (offset > (1ull << 30))
+      throw InvalidArgument(who + "more than 2^30 parameters (4 GiB); lower log2_hashmap_size or n_levels");
+    m_levels.push_back(level);
+  }
+  m_n_params = static_cast<std::uint32_t>(offset);
+}
+
+Json HashGridEncoding::hyperparams() const {
+  return {{"type", type()},
+          {"n_levels", m_options.n_levels},
+          {"n_features_per_level", m_options.n_features_per_level},
+          {"log2_hashmap_size", m_options.log2_hashmap_size},
+          {"base_resolution", m_options.base_resolution},
+          {"per_level_scale", m_options.per_level_scale}};
+}
+
+void HashGridEncoding::initialize_params(float* out, std::uint64_t seed) const {
+  const std::uint64_t key = splitmix64(seed ^ 0x4861736847726964ull);
+  for (std::uint32_t i = 0; i < m_n_params; ++i) {
+    const double u = static_cast<double>(splitmix64(key + i) >> 11) * 0x1.0p-53;  // [0, 1)
+    out[i] = static_cast<float>((2.0 * u - 1.0) * 1e-4);
+  }
+}
+
+std::uint32_t HashGridEncoding::gradient_ranges(const Device& device) const {
+  if (device.info().type == "cpu") return 1;
+  // Enough (level, range) work-items to occupy a GPU: each range rescans the batch, so no more than that.
+  const std::uint32_t want = std::max(1u, device.info().compute_units) * 16;
+  return std::min<std::uint32_t>(256, (want + m_options.n_levels - 1) / m_options.n_levels);
+}
+
+Defines HashGridEncoding::defines(const Device& device) const {
+  Defines d;
+  d["DIMS"] = std::to_string(m_dims);
+  d["FEATS"] = std::to_string(m_options.n_features_per_level);
+  d["N_LEVELS"] = std::to_string(m_levels.size());
+  d["LEVEL_SCALES"] = initializer(m_levels, [](const Level& l) {
+    std::ostringstream s;
+    s << std::hexfloat << l.scale << "f";  // exact: the kernel must place samples exactly as the host reference
+    return s.str();
+  });
+  d["LEVEL_RES"] = initializer(m_levels, [](const Level& l) { return std::to_string(l.res) + "u"; });
+  d["LEVEL_SIZE"] = initializer(m_levels, [](const Level& l) { return std::to_string(l.size) + "u"; });
+  d["LEVEL_OFFSET"] = initializer(m_levels, [](const Level& l) { return std::to_string(l.offset) + "u"; });
+  d["LEVEL_HASHED"] = initializer(m_levels, [](const Level& l) { return std::string(l.hashed ? "1u" : "0u"); });
+  d["N_RANGES"] = std::to_string(gradient_ranges(device));
+  return d;
+}
+
+void HashGridEncoding::forward(const Device& device, ConstParamSlice params, const BatchMatrix& input,
+                               std::uint32_t in_col, BatchMatrix& output, std::uint32_t out_col, Workspace*) const {
+  detail::check_matrix("HashGrid::forward", "input", input, in_col, m_dims);
+  detail::check_matrix("HashGrid::forward", "output", output, out_col, n_output_dims(), &input);
+  detail::check_slice("HashGrid::forward", "parameter", params, m_n_params);
+  Kernel k = device.kernel("enc_hashgrid.cl", "hashgrid_forward", defines(device));
+  const std::size_t items = static_cast<std::size_t>(detail::n_tiles(input)) * m_levels.size();
+  k.args(detail::n_tiles(input), *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(), input.cols(),
+         in_col, output.data(), output.cols(), out_col)
+      .launch(items, detail::local_size(k));
+}
+
+void HashGridEncoding::backward(const Device& device, ConstParamSlice params, const BatchMatrix& input,
+                                std::uint32_t in_col, const BatchMatrix& d_output, std::uint32_t out_col,
+                                ParamSlice grads, bool accumulate, BatchMatrix* d_input, Workspace*) const {
+  detail::check_matrix("HashGrid::backward", "input", input, in_col, m_dims);
+  detail::check_matrix("HashGrid::backward", "d_output", d_output, out_col, n_output_dims(), &input);
+  const Defines defs = defines(device);
+  if (grads.buffer) {
+    detail::check_slice("HashGrid::backward", "gradient", grads, m_n_params);
+    if (!accumulate) grads.buffer->fill(0.0f, grads.offset, m_n_params);
+    Kernel k = device.kernel("enc_hashgrid.cl", "hashgrid_backward_params", defs);
+    const std::size_t items = m_levels.size() * static_cast<std::size_t>(gradient_ranges(device));
+    // One (level, range) per work-group on a CPU, so that the levels spread over the cores.
+    const std::size_t local = device.info().type == "cpu" ? 1 : detail::local_size(k);
+    k.args(detail::n_tiles(input), input.batch(), input.data(), input.cols(), in_col, d_output.data(),
+           d_output.cols(), out_col, *grads.buffer, static_cast<std::uint32_t>(grads.offset))
+        .launch(items, local);
+  }
+  if (d_input) {
+    detail::check_matrix("HashGrid::backward", "d_input", *d_input, in_col, m_dims, &input);
+    detail::check_slice("HashGrid::backward", "parameter", params, m_n_params);
+    Kernel k = device.kernel("enc_hashgrid.cl", "hashgrid_backward_input", defs);
+    k.args(detail::n_tiles(input), *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(),
+           input.cols(), in_col, d_output.data(), d_output.cols(), out_col, d_input->data(), d_input->cols())
+        .launch(detail::n_tiles(input), detail::local_size(k));
+  }
+}
+
+}  // namespace relit::nn
