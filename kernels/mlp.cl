@@ -1,0 +1,396 @@
+// mlp.cl: the fully fused MLP (FullyFusedMLP): forward, backward (dL/dinput and the per-layer dL/dZ), the
+// per-chunk weight-gradient partials and their fixed-order reduction. Deterministic, no atomics.
+//
+// Batch layout (BatchMatrix, see relit/nn/batch.hpp): 16 consecutive samples of one feature are contiguous,
+//
+//   tile t:  [f0: s0 .. s15][f1: s0 .. s15] ... [f(cols-1): s0 .. s15]      (16 floats = one float16)
+//
+// so one work-item owns one tile (16 samples) and every value it handles is a float16 whose lanes are
+// samples: PoCL maps it onto SIMD registers, a GPU treats it as 16 independent scalars.
+//
+// Register blocking (forward, dL/dinput): FWD_R outputs at a time, all inputs k streamed through:
+//
+//        acc[r] (float16, lanes = samples)  +=  W[j0 + r][k] (broadcast)  *  in[k] (float16)
+//
+//   per k: one float16 load, FWD_R broadcasts, FWD_R float16 FMAs: FWD_R independent accumulator chains.
+//
+// Parameters (one layer after the other, layer l = 0 .. N_HIDDEN): a row-major [n_out_l][n_in_l + BIAS]
+// matrix whose last column is the bias when BIAS = 1. n_in_0 = N_IN; hidden layer l >= 1 has n_in = WIDTH,
+// plus N_IN when bit l of SKIP_MASK is set: its input is [h_(l-1), x] (activations, then network input).
+// The output layer maps WIDTH to N_OUT; output column j gets activation OUT_ACTS[j].
+//
+// Everything is specialised with -D (set by FullyFusedMLP); the defaults make the file build alone.
+#ifndef N_IN
+#define N_IN 32
+#endif
+#ifndef WIDTH
+#define WIDTH 64
+#endif
+#ifndef N_HIDDEN
+#define N_HIDDEN 3
+#endif
+#ifndef N_OUT
+#define N_OUT 16
+#endif
+#ifndef SKIP_MASK
+#define SKIP_MASK 0u
+#endif
+#ifndef TOP_SKIP
+#define TOP_SKIP 0   // the highest layer index with a skip (0: none)
+#endif
+#ifndef HIDDEN_ACT
+#define HIDDEN_ACT 1  // 0: None, 1: ReLU
+#endif
+#ifndef OUT_ACTS
+#define OUT_ACTS 0    // per output column: 0 None, 1 ReLU, 2 Sigmoid, 3 Softplus, 4 Tanh
+#endif
+#ifndef BIAS
+#define BIAS 1
+#endif
+#ifndef FWD_R
+#define FWD_R 4
+#endif
+#ifndef DW_RJ
+#define DW_RJ 4
+#endif
+#ifndef DW_RK
+#define DW_RK 2
+#endif
+
+#define ACT_NONE 0
+#define ACT_RELU 1
+#define ACT_SIGMOID 2
+#define ACT_SOFTPLUS 3
+#define ACT_TANH 4
+
+#define TILE 16
+#define GMAX (WIDTH > N_OUT ? WIDTH : N_OUT)
+
+__constant uchar k_out_act[N_OUT] = {OUT_ACTS};
+
+// Column count of layer l's input, and its parameter row stride.
+#define LAYER_IN(l) ((l) == 0 ? N_IN : WIDTH + ((((SKIP_MASK) >> (l)) & 1u) ? N_IN : 0))
+#define LAYER_OUT(l) ((l) == N_HIDDEN ? N_OUT : WIDTH)
+#define LAYER_STRIDE(l) (LAYER_IN(l) + BIAS)
+
+// Offset of layer l's parameters (0 < l <= N_HIDDEN) from the start of the network's slice.
+inline uint layer_offset(uint l) {
+  if (l == 0) return 0;
+  const uint skips_below = popcount((uint)(SKIP_MASK) & ((1u << l) - 1u));
+  return (N_IN + BIAS) * WIDTH + (l - 1) * (WIDTH + BIAS) * WIDTH + skips_below * N_IN * WIDTH;
+}
+
+inline float16 apply_act(float16 z, uint a) {
+  switch (a) {
+    case ACT_RELU: return fmax(z, 0.0f);
+    case ACT_SIGMOID: return 1.0f / (1.0f + exp(-z));
+    case ACT_SOFTPLUS: return fmax(z, 0.0f) + log1p(exp(-fabs(z)));
+    case ACT_TANH: return tanh(z);
+    default: return z;
+  }
+}
+
+// d act / d z, from the activation's output y (which the backward pass has; z is not saved).
+inline float16 act_grad(float16 y, uint a) {
+  switch (a) {
+    case ACT_RELU: return select((float16)0.0f, (float16)1.0f, y > 0.0f);
+    case ACT_SIGMOID: return y * (1.0f - y);
+    case ACT_SOFTPLUS: return -expm1(-y);  // sigmoid(z) = 1 - exp(-softplus(z))
+    case ACT_TANH: return fma(-y, y, 1.0f);
+    default: return (float16)1.0f;
+  }
+}
+
+inline float16 hidden_act(float16 z) {
+#if HIDDEN_ACT == ACT_RELU
+  return fmax(z, 0.0f);
+#else
+  return z;
+#endif
+}
+
+// acc[r] += sum_k w[(j0 + r) * stride + k] * SRC(k), for r < NR (NR is a compile-time constant, so the r
+// loop unrolls and acc[] lives in registers).
+#define ACCUM(acc, NR, SRC, K, w, stride, j0)                                          \
+  for (uint k_ = 0; k_ < (uint)(K); ++k_) {                                            \
+    const float16 x_ = SRC(k_);                                                        \
+    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_)                              \
+        acc[r_] = fma((float16)((w)[((j0) + r_) * (stride) + k_]), x_, acc[r_]);      \
+  }
+
+// acc[r] += sum_j w[j * stride + k0 + r] * SRC(j): the transposed product of the backward pass.
+#define ACCUM_T(acc, NR, SRC, J, w, stride, k0)                                        \
+  for (uint j_ = 0; j_ < (uint)(J); ++j_) {                                            \
+    const float16 g_ = SRC(j_);                                                        \
+    __global const float* wr_ = (w) + j_ * (stride) + (k0);                            \
+    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_)                              \
+        acc[r_] = fma((float16)(wr_[r_]), g_, acc[r_]);                               \
+  }
+
+#define INIT_BIAS(acc, NR, w, stride, j0, K)                                           \
+  _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_)                                \
+      acc[r_] = BIAS ? (float16)((w)[((j0) + r_) * (stride) + (K)]) : (float16)0.0f;
+
+// ---------------------------------------------------------------------------------------------------------
+// Forward. One work-item = one tile of 16 samples; all layers in registers/private memory. With save != 0
+// the hidden activations h_l (after the activation) are also written to `act` (layer l at
+// act + l * padded * WIDTH, tiled) for the backward pass.
+// ---------------------------------------------------------------------------------------------------------
+
+#define SRC_X(k) vload16(0, xt + (k) * TILE)
+#define SRC_H(k) hin[k]
+
+// One hidden layer block of NR outputs starting at j0.
+#define HIDDEN_BLOCK(NR, j0)                                                                   \
+  {                                                                                            \
+    float16 acc[NR];                                                                           \
+    INIT_BIAS(acc, NR, w, stride, j0, kin)                                                     \
+    if (l == 0) {                                                                              \
+      ACCUM(acc, NR, SRC_X, N_IN, w, stride, j0)                                               \
+    } else {                                                                                   \
+      ACCUM(acc, NR, SRC_H, WIDTH, w, stride, j0)                                              \
+      if (skip) { __global const float* ws_ = w + WIDTH; ACCUM(acc, NR, SRC_X, N_IN, ws_, stride, j0) } \
+    }                                                                                          \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) {                                        \
+      const float16 y = hidden_act(acc[r]);                                                    \
+      hout[(j0) + r] = y;                                                                      \
+      if (save) vstore16(y, 0, st + ((j0) + r) * TILE);                                        \
+    }                                                                                          \
+  }
+
+#define OUTPUT_BLOCK(NR, j0)                                                                   \
+  {                                                                                            \
+    float16 acc[NR];                                                                           \
+    INIT_BIAS(acc, NR, w, stride, j0, WIDTH)                                                   \
+    ACCUM(acc, NR, SRC_H, WIDTH, w, stride, j0)                                                \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
+        vstore16(apply_act(acc[r], k_out_act[(j0) + r]), 0, yt + ((j0) + r) * TILE);           \
+  }
+
+__kernel void mlp_forward(const uint n_tiles, const uint padded, __global const float* restrict params,
+                          const uint param_offset, __global const float* restrict x, __global float* restrict y,
+                          __global float* restrict act, const uint save) {
+  const size_t t = get_global_id(0);
+  if (t >= n_tiles) return;
+  __global const float* p = params + param_offset;
+  __global const float* xt = x + t * (size_t)(N_IN * TILE);
+  __global float* yt = y + t * (size_t)(N_OUT * TILE);
+
+  float16 h[2][WIDTH];
+  for (uint l = 0; l < N_HIDDEN; ++l) {
+    const uint skip = (((uint)(SKIP_MASK)) >> l) & 1u;
+    const uint kin = LAYER_IN(l);
+    const uint stride = kin + BIAS;
+    __global const float* w = p + layer_offset(l);
+    __private float16* hin = h[(l + 1) & 1];
+    __private float16* hout = h[l & 1];
+    __global float* st = save ? act + (size_t)l * padded * WIDTH + t * (size_t)(WIDTH * TILE) : act;
+    for (uint j0 = 0; j0 + FWD_R <= WIDTH; j0 += FWD_R) HIDDEN_BLOCK(FWD_R, j0)
+#if WIDTH % FWD_R
+    HIDDEN_BLOCK(WIDTH % FWD_R, WIDTH - WIDTH % FWD_R)
+#endif
+  }
+  {
+    __private float16* hin = h[(N_HIDDEN + 1) & 1];
+    const uint stride = LAYER_STRIDE(N_HIDDEN);
+    __global const float* w = p + layer_offset(N_HIDDEN);
+    for (uint j0 = 0; j0 + FWD_R <= N_OUT; j0 += FWD_R) OUTPUT_BLOCK(FWD_R, j0)
+#if N_OUT % FWD_R
+    OUTPUT_BLOCK(N_OUT % FWD_R, N_OUT - N_OUT % FWD_R)
+#endif
+  }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Backward through the activations: dZ_l = dL/d(pre-activation of layer l) for every layer, written to `dz`
+// (hidden layer l at dz + l * padded * WIDTH, the output layer at dz + N_HIDDEN * padded * WIDTH with N_OUT
+// columns), and dL/dx into `dx` when want_dx. Lanes of samples >= batch get zero gradients, so the weight
+// gradients never see the padding rows whatever d_output holds there.
+// ---------------------------------------------------------------------------------------------------------
+
+#define SRC_G(j) gin[j]
+
+// NR inputs k0.. of dL/dh_(l-1) = W_l^T dZ_l, masked by the activation derivative of h_(l-1).
+#define BACK_HIDDEN_BLOCK(NR, k0)                                                              \
+  {                                                                                            \
+    float16 acc[NR];                                                                           \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) acc[r] = (float16)0.0f;                 \
+    ACCUM_T(acc, NR, SRC_G, nout, w, stride, k0)                                               \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) {                                        \
+      float16 g = acc[r];                                                                      \
+      if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, vload16(0, at + ((k0) + r) * TILE) > 0.0f); \
+      gout[(k0) + r] = g;                                                                      \
+      vstore16(g, 0, dzt + ((k0) + r) * TILE);                                                 \
+    }                                                                                          \
+  }
+
+// NR inputs k0.. of dL/dx from the input columns starting at column `xcol` of layer w (layer 0 or a skip).
+#define BACK_INPUT_BLOCK(NR, k0)                                                               \
+  {                                                                                            \
+    float16 acc[NR];                                                                           \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) acc[r] = (float16)0.0f;                 \
+    __global const float* wx_ = w + xcol;                                                      \
+    ACCUM_T(acc, NR, SRC_G, nout, wx_, stride, k0)                                             \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) {                                        \
+      __global float* d_ = dxt + ((k0) + r) * TILE;                                            \
+      vstore16(first ? acc[r] : acc[r] + vload16(0, d_), 0, d_);                               \
+    }                                                                                          \
+  }
+
+#define BACK_INPUT(first_)                                                                     \
+  {                                                                                            \
+    const uint first = (first_);                                                               \
+    for (uint k0 = 0; k0 + FWD_R <= N_IN; k0 += FWD_R) BACK_INPUT_BLOCK(FWD_R, k0)             \
+    BACK_INPUT_TAIL                                                                            \
+  }
+#if N_IN % FWD_R
+#define BACK_INPUT_TAIL BACK_INPUT_BLOCK(N_IN % FWD_R, N_IN - N_IN % FWD_R)
+#else
+#define BACK_INPUT_TAIL
+#endif
+
+__kernel void mlp_backward(const uint n_tiles, const uint padded, const uint batch,
+                           __global const float* restrict params, const uint param_offset,
+                           __global const float* restrict y, __global const float* restrict dy,
+                           __global const float* restrict act, __global float* restrict dz,
+                           __global float* restrict dx, const uint want_dx) {
+  const size_t t = get_global_id(0);
+  if (t >= n_tiles) return;
+  __global const float* p = params + param_offset;
+  const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  const int16 valid = (int16)((int)(t * TILE)) + lane < (int16)((int)batch);
+
+  float16 g[2][GMAX];
+  {  // dZ of the output layer.
+    __global const float* yt = y + t * (size_t)(N_OUT * TILE);
+    __global const float* dyt = dy + t * (size_t)(N_OUT * TILE);
+    __global float* dzt = dz + (size_t)N_HIDDEN * padded * WIDTH + t * (size_t)(N_OUT * TILE);
+    for (uint j = 0; j < N_OUT; ++j) {
+      const float16 d = vload16(0, dyt + j * TILE) * act_grad(vload16(0, yt + j * TILE), k_out_act[j]);
+      const float16 dm = select((float16)0.0f, d, valid);
+      g[N_HIDDEN & 1][j] = dm;
+      vstore16(dm, 0, dzt + j * TILE);
+    }
+  }
+  __global float* dxt = dx + t * (size_t)(N_IN * TILE);
+  for (uint l = N_HIDDEN; l >= 1; --l) {
+    const uint nout = LAYER_OUT(l);
+    const uint stride = LAYER_STRIDE(l);
+    __global const float* w = p + layer_offset(l);
+    __private const float16* gin = g[l & 1];
+    __private float16* gout = g[(l + 1) & 1];
+    __global const float* at = act + (size_t)(l - 1) * padded * WIDTH + t * (size_t)(WIDTH * TILE);
+    __global float* dzt = dz + (size_t)(l - 1) * padded * WIDTH + t * (size_t)(WIDTH * TILE);
+    if (want_dx && ((((uint)(SKIP_MASK)) >> l) & 1u)) {
+      const uint xcol = WIDTH;
+      BACK_INPUT(l == TOP_SKIP)
+    }
+    for (uint k0 = 0; k0 + FWD_R <= WIDTH; k0 += FWD_R) BACK_HIDDEN_BLOCK(FWD_R, k0)
+#if WIDTH % FWD_R
+    BACK_HIDDEN_BLOCK(WIDTH % FWD_R, WIDTH - WIDTH % FWD_R)
+#endif
+  }
+  if (want_dx) {
+    const uint nout = WIDTH, stride = N_IN + BIAS, xcol = 0;
+    __global const float* w = p;
+    __private const float16* gin = g[0];
+    BACK_INPUT(TOP_SKIP == 0)
+  }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Weight gradients of one layer: partial[c][off + j * stride + k] = sum over the tiles of chunk c of
+// sum_s dZ[s][j] * in[s][k], where in = [a (a_n columns), x (x_n columns), 1 (the bias column)].
+// dz and a start at dz_off and a_off (the layer's region of the workspace).
+// One work-item = one chunk x one DW_RJ x DW_RK block; the chunk index varies slowest, so consecutive
+// work-items (one work-group, one core) reuse the chunk's rows from cache. Partial sums go to their own
+// slot: no atomics, and the reduction below adds chunks in a fixed order (bit-for-bit reproducible).
+// ---------------------------------------------------------------------------------------------------------
+__kernel void mlp_weight_grad_partial(const uint n_tiles, const uint tiles_per_chunk, const uint n_chunks,
+                                      __global const float* restrict dz, const uint n_out,
+                                      __global const float* restrict a, const uint a_cols, const uint a_n,
+                                      __global const float* restrict x, const uint x_cols, const uint x_n,
+                                      const uint bias, __global const float* restrict ones,
+                                      __global float* restrict partial, const uint partial_stride,
+                                      const uint layer_off, const uint dz_off, const uint a_off) {
+  dz += dz_off;
+  a += a_off;
+  const uint n_in = a_n + x_n + bias;
+  const uint jblocks = (n_out + DW_RJ - 1) / DW_RJ, kblocks = (n_in + DW_RK - 1) / DW_RK;
+  const size_t gid = get_global_id(0);
+  if (gid >= (size_t)n_chunks * jblocks * kblocks) return;
+  const uint c = gid / (jblocks * kblocks);
+  const uint rem = gid - c * (jblocks * kblocks);
+  const uint j0 = (rem / kblocks) * DW_RJ, k0 = (rem % kblocks) * DW_RK;
+  const uint t0 = c * tiles_per_chunk, t1 = min(t0 + tiles_per_chunk, n_tiles);
+
+  // Column sources: rows past the end repeat the last row, columns past the end read the ones (their
+  // results are not stored), so the inner loop has no branches.
+  __global const float* dzp[DW_RJ];
+  __global const float* inp[DW_RK];
+  size_t instep[DW_RK];
+#pragma unroll
+  for (uint r = 0; r < DW_RJ; ++r) dzp[r] = dz + min(j0 + r, n_out - 1) * TILE;
+#pragma unroll
+  for (uint r = 0; r < DW_RK; ++r) {
+    const uint k = k0 + r;
+    if (k < a_n) { inp[r] = a + k * TILE; instep[r] = (size_t)a_cols * TILE; }
+    else if (k < a_n + x_n) { inp[r] = x + (k - a_n) * TILE; instep[r] = (size_t)x_cols * TILE; }
+    else { inp[r] = ones; instep[r] = 0; }
+  }
+  const size_t dzstep = (size_t)n_out * TILE;
+
+  float8 acc[DW_RJ][DW_RK];
+#pragma unroll
+  for (uint i = 0; i < DW_RJ; ++i)
+#pragma unroll
+    for (uint r = 0; r < DW_RK; ++r) acc[i][r] = (float8)0.0f;
+  for (uint t = t0; t < t1; ++t) {
+#pragma unroll
+    for (uint h = 0; h < 2; ++h) {
+      float8 xv[DW_RK];
+#pragma unroll
+      for (uint r = 0; r < DW_RK; ++r) xv[r] = vload8(h, inp[r] + t * instep[r]);
+#pragma unroll
+      for (uint i = 0; i < DW_RJ; ++i) {
+        const float8 d = vload8(h, dzp[i] + t * dzstep);
+#pragma unroll
+        for (uint r = 0; r < DW_RK; ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);
+      }
+    }
+  }
+  __global float* out = partial + (size_t)c * partial_stride + layer_off;
+  const uint stride = n_in;
+#pragma unroll
+  for (uint i = 0; i < DW_RJ; ++i)
+#pragma unroll
+    for (uint r = 0; r < DW_RK; ++r) {
+      if (j0 + i < n_out && k0 + r < n_in) {
+        const float8 v = acc[i][r];
+        const float4 s4 = v.lo + v.hi;
+        const float2 s2 = s4.lo + s4.hi;
+        out[(j0 + i) * stride + k0 + r] = s2.x + s2.y;
+      }
+    }
+}
+
+// grads[i] (+)= sum_c partial[c * partial_stride + i], chunks added in order; 8 parameters per work-item.
+__kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global const float* restrict partial,
+                                const uint partial_stride, __global float* restrict grads, const uint grad_offset,
+                                const uint accumulate) {
+  const size_t i = get_global_id(0) * 8;
+  if (i >= n) return;
+  __global float* g = grads + grad_offset;
+  if (i + 8 <= n) {
+    float8 s = vload8(0, partial + i);
+    for (uint c = 1; c < n_chunks; ++c) s += vload8(0, partial + (size_t)c * partial_stride + i);
+    if (accumulate) s += vload8(0, g + i);
+    vstore8(s, 0, g + i);
+  } else {
+    for (size_t k = i; k < n; ++k) {
+      float s = partial[k];
+      for (uint c = 1; c < n_chunks; ++c) s += partial[(size_t)c * partial_stride + k];
+      g[k] = accumulate ? g[k] + s : s;
+    }
+  }
+}

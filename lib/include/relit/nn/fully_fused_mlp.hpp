@@ -1,0 +1,102 @@
+// FullyFusedMLP: a multi-layer perceptron whose layers all run in one kernel per pass (tiny-cuda-nn's
+// "FullyFusedMLP", written for CPU SIMD on PoCL and portable to GPUs).
+//
+//   {"type": "FullyFusedMLP", "n_neurons": 64, "n_hidden_layers": 2, "activation": "ReLU",
+//    "output_activation": "None", "skip_layers": [], "bias": true}
+//   {"type": "FullyFusedMLP", "n_neurons": 256, "n_hidden_layers": 8, "skip_layers": [5],
+//    "output_heads": [{"n_dims": 1, "activation": "Softplus"}, {"n_dims": 3, "activation": "Sigmoid"}, ...]}
+//
+// Network: x (n_input_dims) -> n_hidden_layers dense layers of n_neurons with `activation` -> a dense output
+// layer (n_output_dims) with per-column output activations. A hidden layer l in skip_layers (1 <= l <
+// n_hidden_layers) takes [h_(l-1), x] as its input (NeRF's skip connection). Any n_input_dims and
+// n_output_dims work; nothing needs padding by the user.
+//
+// Parameter layout (see docs/networks.md): layer after layer, each a row-major [n_out][n_in + bias] matrix
+// (PyTorch's nn.Linear weight with the bias appended as the last column). Weight gradients are reduced in a
+// fixed order (no atomics): results are bit-for-bit reproducible on one device.
+#pragma once
+
+#include <relit/nn/module.hpp>
+
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace relit::nn {
+
+/// Output activations of the FullyFusedMLP (the codes match kernels/mlp.cl).
+enum class Activation : std::uint8_t { None = 0, ReLU = 1, Sigmoid = 2, Softplus = 3, Tanh = 4 };
+
+const char* activation_name(Activation a);
+/// Applies an activation on the host (double precision): for references and tests.
+double apply_activation(Activation a, double z);
+
+/// A group of consecutive output columns with one activation (the property network's sigma/albedo/g heads).
+struct OutputHead {
+  std::uint32_t n_dims = 0;
+  Activation activation = Activation::None;
+};
+
+class FullyFusedMLP final : public Network {
+ public:
+  /// Reads the config (keys in the file comment); throws ConfigError naming the key on bad values.
+  FullyFusedMLP(config::Reader& reader, std::uint32_t n_input_dims, std::uint32_t n_output_dims);
+  ~FullyFusedMLP() override;
+
+  std::string type() const override { return "FullyFusedMLP"; }
+  Json hyperparams() const override { return m_hyperparams; }
+  std::uint32_t n_params() const override;
+  void initialize_params(float* out, std::uint64_t seed) const override;
+
+  std::uint32_t n_input_dims() const override { return m_n_input; }
+  std::uint32_t n_output_dims() const override { return m_n_output; }
+
+  std::unique_ptr<Workspace> make_workspace(const Device& device) const override;
+  void inference(const Device& device, ConstParamSlice params, const BatchMatrix& input,
+                 BatchMatrix& output) const override;
+  void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
+               Workspace& workspace) const override;
+  void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input, const BatchMatrix& output,
+                const BatchMatrix& d_output, ParamSlice grads, bool accumulate, BatchMatrix* d_input,
+                Workspace& workspace) const override;
+
+  // Structure, for references, tests and benchmarks.
+  std::uint32_t width() const { return m_width; }
+  std::uint32_t n_hidden_layers() const { return m_n_hidden; }
+  bool has_bias() const { return m_bias; }
+  Activation hidden_activation() const { return m_hidden_activation; }
+  /// The activation of every output column.
+  const std::vector<Activation>& output_activations() const { return m_output_activations; }
+  bool has_skip(std::uint32_t layer) const;
+  /// Layer l = 0 .. n_hidden_layers (the last is the output layer): its input and output widths, and where
+  /// its [n_out][n_in + bias] block starts in the network's parameters.
+  std::uint32_t layer_inputs(std::uint32_t l) const;
+  std::uint32_t layer_outputs(std::uint32_t l) const;
+  std::uint32_t layer_offset(std::uint32_t l) const;
+
+  /// FLOPs of one forward pass per sample (2 per multiply-add), as the benchmarks count them.
+  double flops_per_sample() const;
+
+  /// Builds (or fetches from the device's cache) the kernels once, so the first call is not slow.
+  void warm_up(const Device& device) const;
+
+ private:
+  struct Kernels;
+  const Kernels& kernels(const Device& device) const;
+  void launch_forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
+                      Buffer<float>* act, std::uint32_t act_padded) const;
+  void check_input(const char* what, const BatchMatrix& input) const;
+
+  std::uint32_t m_n_input, m_n_output, m_width, m_n_hidden;
+  bool m_bias;
+  Activation m_hidden_activation;
+  std::vector<Activation> m_output_activations;
+  std::vector<std::uint32_t> m_skip_layers;
+  Json m_hyperparams;
+
+  mutable std::mutex m_mutex;
+  mutable std::vector<std::unique_ptr<Kernels>> m_kernels;  // one set per device
+};
+
+}  // namespace relit::nn

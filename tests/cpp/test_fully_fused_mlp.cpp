@@ -1,0 +1,462 @@
+// FullyFusedMLP against a double-precision Eigen reference: forward, dL/dinput and dL/dparams for every
+// width, with and without skips, biases and heads, several batch sizes; central finite differences; the
+// accumulate flag; bit-for-bit determinism; config errors.
+#include "test_support.hpp"
+
+#include <relit/nn/fully_fused_mlp.hpp>
+#include <relit/nn/registry.hpp>
+
+#include <Eigen/Dense>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+namespace relit::nn {
+namespace {
+
+using Mat = Eigen::MatrixXd;  // samples as rows
+
+// The reference network, in double precision, read from the same flat parameter layout.
+class Reference {
+ public:
+  Reference(const FullyFusedMLP& net, const std::vector<float>& params, std::size_t offset = 0) : m_net(net) {
+    const std::uint32_t b = net.has_bias() ? 1 : 0;
+    for (std::uint32_t l = 0; l <= net.n_hidden_layers(); ++l) {
+      const std::uint32_t n_in = net.layer_inputs(l), n_out = net.layer_outputs(l);
+      Mat w(n_out, n_in);
+      Eigen::VectorXd bias = Eigen::VectorXd::Zero(n_out);
+      const float* p = params.data() + offset + net.layer_offset(l);
+      for (std::uint32_t j = 0; j < n_out; ++j) {
+        for (std::uint32_t k = 0; k < n_in; ++k) w(j, k) = p[j * (n_in + b) + k];
+        if (b) bias(j) = p[j * (n_in + b) + n_in];
+      }
+      m_w.push_back(w);
+      m_b.push_back(bias);
+    }
+  }
+
+  /// Output for row-major input x (batch x n_in).
+  Mat forward(const Mat& x) {
+    m_in.clear();
+    m_h.clear();
+    Mat h = x;
+    const std::uint32_t L = m_net.n_hidden_layers();
+    for (std::uint32_t l = 0; l <= L; ++l) {
+      Mat in = layer_input(l, h, x);
+      Mat z = (in * m_w[l].transpose()).rowwise() + m_b[l].transpose();
+      m_in.push_back(in);
+      if (l < L) {
+        h = z.unaryExpr([&](double v) { return apply_activation(m_net.hidden_activation(), v); });
+        m_h.push_back(h);
+      } else {
+        for (Eigen::Index j = 0; j < z.cols(); ++j)
+          z.col(j) = z.col(j).unaryExpr(
+              [&](double v) { return apply_activation(m_net.output_activations()[j], v); });
+        m_y = z;
+      }
+    }
+    return m_y;
+  }
+
+  /// After forward(): gradients of sum(dy .* y) w.r.t. the parameters (flat layout) and the input.
+  void backward(const Mat& x, const Mat& dy, std::vector<double>& dparams, Mat& dx) const {
+    const std::uint32_t L = m_net.n_hidden_layers(), b = m_net.has_bias() ? 1 : 0;
+    dparams.assign(m_net.n_params(), 0.0);
+    dx = Mat::Zero(x.rows(), x.cols());
+    Mat dz = dy;
+    for (Eigen::Index j = 0; j < dz.cols(); ++j)
+      for (Eigen::Index s = 0; s < dz.rows(); ++s)
+        dz(s, j) *= act_grad(m_net.output_activations()[j], m_y(s, j));
+    for (std::uint32_t l = L + 1; l-- > 0;) {
+      const Mat dw = dz.transpose() * m_in[l];
+      const Eigen::VectorXd db = dz.colwise().sum().transpose();
+      const std::uint32_t n_in = m_net.layer_inputs(l);
+      for (Eigen::Index j = 0; j < dw.rows(); ++j) {
+        for (std::uint32_t k = 0; k < n_in; ++k) dparams[m_net.layer_offset(l) + j * (n_in + b) + k] = dw(j, k);
+        if (b) dparams[m_net.layer_offset(l) + j * (n_in + b) + n_in] = db(j);
+      }
+      const Mat din = dz * m_w[l];
+      if (l == 0) {
+        dx += din;
+      } else {
+        const std::uint32_t w = m_net.width();
+        if (m_net.has_skip(l)) dx += din.rightCols(x.cols());
+        dz = din.leftCols(w);
+        for (Eigen::Index k = 0; k < dz.cols(); ++k)
+          for (Eigen::Index s = 0; s < dz.rows(); ++s) dz(s, k) *= act_grad(m_net.hidden_activation(), m_h[l - 1](s, k));
+      }
+    }
+  }
+
+ private:
+  static double act_grad(Activation a, double y) {
+    switch (a) {
+      case Activation::ReLU: return y > 0 ? 1.0 : 0.0;
+      case Activation::Sigmoid: return y * (1 - y);
+      case Activation::Softplus: return -std::expm1(-y);
+      case Activation::Tanh: return 1 - y * y;
+      case Activation::None: break;
+    }
+    return 1.0;
+  }
+  Mat layer_input(std::uint32_t l, const Mat& h, const Mat& x) const {
+    if (l == 0) return x;
+    if (!m_net.has_skip(l)) return h;
+    Mat in(h.rows(), h.cols() + x.cols());
+    in << h, x;
+    return in;
+  }
+
+  const FullyFusedMLP& m_net;
+  std::vector<Mat> m_w;
+  std::vector<Eigen::VectorXd> m_b;
+  std::vector<Mat> m_in, m_h;
+  Mat m_y;
+};
+
+std::unique_ptr<FullyFusedMLP> make_mlp(const Json& config, std::uint32_t n_in, std::uint32_t n_out) {
+  auto net = create_network(config, n_in, n_out);
+  auto* mlp = dynamic_cast<FullyFusedMLP*>(net.get());
+  EXPECT_NE(mlp, nullptr);
+  net.release();
+  return std::unique_ptr<FullyFusedMLP>(mlp);
+}
+
+std::vector<float> random_vector(std::size_t n, std::uint32_t seed, float lo = -1.0f, float hi = 1.0f) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(lo, hi);
+  std::vector<float> v(n);
+  for (auto& x : v) x = u(rng);
+  return v;
+}
+
+Mat to_mat(const std::vector<float>& v, std::uint32_t rows, std::uint32_t cols) {
+  Mat m(rows, cols);
+  for (std::uint32_t s = 0; s < rows; ++s)
+    for (std::uint32_t f = 0; f < cols; ++f) m(s, f) = v[std::size_t(s) * cols + f];
+  return m;
+}
+
+// |got - want| <= rtol * (|want| + rms(want)): relative where values are large, absolute (at the data's
+// own scale) where they cancel to near zero. Returns the worst ratio error / allowed (<= 1 passes).
+template <class Got>
+double worst_ratio(const Got& got, const std::vector<double>& want, double rtol) {
+  double rms = 0.0;
+  for (double w : want) rms += w * w;
+  rms = std::sqrt(rms / std::max<std::size_t>(1, want.size())) + 1e-30;
+  double worst = 0.0;
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    const double e = std::abs(double(got[i]) - want[i]);
+    if (!std::isfinite(double(got[i]))) return INFINITY;
+    worst = std::max(worst, e / (rtol * (std::abs(want[i]) + rms)));
+  }
+  return worst;
+}
+
+std::vector<double> flatten(const Mat& m) {
+  std::vector<double> v(std::size_t(m.rows()) * m.cols());
+  for (Eigen::Index s = 0; s < m.rows(); ++s)
+    for (Eigen::Index f = 0; f < m.cols(); ++f) v[std::size_t(s) * m.cols() + f] = m(s, f);
+  return v;
+}
+
+struct Case {
+  const char* name;
+  std::uint32_t n_in, n_out;
+  Json config;
+};
+
+void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
+
+std::vector<Case> cases() {
+  return {
+      {"w16_L1", 3, 1, {{"n_neurons", 16}, {"n_hidden_layers", 1}}},
+      {"w32_L2_skip_heads", 7, 6,
+       {{"n_neurons", 32}, {"n_hidden_layers", 2}, {"skip_layers", {1}},
+        {"output_heads",
+         {{{"n_dims", 1}, {"activation", "Softplus"}}, {{"n_dims", 3}, {"activation", "Sigmoid"}},
+          {{"n_dims", 1}, {"activation", "Tanh"}}, {{"n_dims", 1}, {"activation", "None"}}}}}},
+      {"w64_L3_small_net", 32, 16, {{"n_neurons", 64}, {"n_hidden_layers", 3}, {"output_activation", "ReLU"}}},
+      {"w128_L2_skip_sigmoid", 19, 4,
+       {{"n_neurons", 128}, {"n_hidden_layers", 2}, {"skip_layers", {1}}, {"output_activation", "Sigmoid"}}},
+      {"w256_L3_skip_nobias", 63, 16,
+       {{"n_neurons", 256}, {"n_hidden_layers", 3}, {"skip_layers", {2}}, {"bias", false}}},
+      {"w64_L4_linear_heads_2skips", 5, 9,
+       {{"n_neurons", 64}, {"n_hidden_layers", 4}, {"activation", "None"}, {"skip_layers", {1, 3}},
+        {"bias", false},
+        {"output_heads", {{{"n_dims", 2}, {"activation", "Tanh"}}, {{"n_dims", 7}, {"activation", "Softplus"}}}}}},
+  };
+}
+
+class MlpCase : public ::testing::TestWithParam<Case> {};
+
+TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
+  const Case& c = GetParam();
+  const Device device = test::test_device();
+  auto net = make_mlp(c.config, c.n_in, c.n_out);
+  // The network's parameters sit at an offset inside a larger model buffer, as in a real model.
+  const std::size_t offset = 37, np = net->n_params();
+  std::vector<float> params(offset + np + 11, 0.5f);
+  net->initialize_params(params.data() + offset, 7);
+  // Random non-zero biases, so that they are tested (initialisation sets them to zero).
+  if (net->has_bias()) {
+    auto r = random_vector(np, 99, -0.3f, 0.3f);
+    for (std::uint32_t l = 0; l <= net->n_hidden_layers(); ++l) {
+      const std::uint32_t n_in = net->layer_inputs(l);
+      for (std::uint32_t j = 0; j < net->layer_outputs(l); ++j) {
+        const std::size_t i = offset + net->layer_offset(l) + std::size_t(j) * (n_in + 1) + n_in;
+        params[i] = r[i - offset];
+      }
+    }
+  }
+  Buffer<float> pbuf(device, params);
+  Buffer<float> gbuf(device, params.size());
+  Reference ref(*net, params, offset);
+
+  auto ws = net->make_workspace(device);
+  BatchMatrix x(device, 1000, c.n_in), y(device, 1000, c.n_out), dy(device, 1000, c.n_out), dx(device, 1000, c.n_in);
+  for (std::uint32_t batch : {1000u, 100u, 1u}) {
+    SCOPED_TRACE(std::string(c.name) + " batch " + std::to_string(batch));
+    const auto xh = random_vector(std::size_t(batch) * c.n_in, batch + 1);
+    // d_output rows beyond the batch hold garbage (16 extra rows): the kernels must ignore them.
+    const std::uint32_t garbage_rows = batch < 1000 ? 16 : 0;
+    auto dyh = random_vector(std::size_t(batch + garbage_rows) * c.n_out, batch + 2);
+    for (std::size_t i = std::size_t(batch) * c.n_out; i < dyh.size(); ++i) dyh[i] = 1e3f;
+    x.resize(batch);
+    x.upload_row_major(xh);
+    dy.resize(batch + garbage_rows);
+    dy.upload_row_major(dyh);
+    dy.resize(batch);
+    dyh.resize(std::size_t(batch) * c.n_out);
+
+    const Mat xm = to_mat(xh, batch, c.n_in);
+    const Mat want_y = ref.forward(xm);
+    std::vector<double> want_dp;
+    Mat want_dx;
+    ref.backward(xm, to_mat(dyh, batch, c.n_out), want_dp, want_dx);
+
+    BatchMatrix yi(device, 1, c.n_out);
+    net->inference(device, {&pbuf, offset}, x, yi);
+    EXPECT_LE(worst_ratio(yi.download_row_major(), flatten(want_y), 1e-5), 1.0) << "inference";
+
+    net->forward(device, {&pbuf, offset}, x, y, *ws);
+    EXPECT_LE(worst_ratio(y.download_row_major(), flatten(want_y), 1e-5), 1.0) << "training forward";
+
+    gbuf.fill(std::nanf(""));  // overwritten (accumulate = false), outside the slice untouched
+    net->backward(device, {&pbuf, offset}, x, y, dy, {&gbuf, offset}, false, &dx, *ws);
+    const auto g = gbuf.read();
+    EXPECT_LE(worst_ratio(g.data() + offset, want_dp, 1e-4), 1.0) << "dL/dparams";
+    EXPECT_TRUE(std::isnan(g[offset - 1]) && std::isnan(g[offset + np])) << "wrote outside its gradient slice";
+    EXPECT_LE(worst_ratio(dx.download_row_major(), flatten(want_dx), 1e-4), 1.0) << "dL/dinput";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(FullyFusedMLP, MlpCase, ::testing::ValuesIn(cases()),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+// A shared small network for the remaining tests: skip, bias, smooth heads.
+struct Small {
+  Device device = test::test_device();
+  std::unique_ptr<FullyFusedMLP> net;
+  std::vector<float> params;
+  Small(const Json& extra = Json::object(), std::uint32_t n_in = 5, std::uint32_t n_out = 4) {
+    Json cfg = {{"n_neurons", 16},
+                {"n_hidden_layers", 3},
+                {"skip_layers", {2}},
+                {"output_heads", {{{"n_dims", 1}, {"activation", "Softplus"}}, {{"n_dims", 2}, {"activation", "Sigmoid"}},
+                                  {{"n_dims", 1}, {"activation", "Tanh"}}}}};
+    cfg.update(extra);
+    net = make_mlp(cfg, n_in, n_out);
+    params.resize(net->n_params());
+    net->initialize_params(params.data(), 3);
+    auto r = random_vector(params.size(), 5, -0.2f, 0.2f);
+    for (std::size_t i = 0; i < params.size(); ++i) params[i] += r[i];  // non-zero biases too
+  }
+};
+
+TEST(FullyFusedMLP, AccumulateAddsToGradients) {
+  Small s;
+  const std::uint32_t batch = 300;
+  Buffer<float> pbuf(s.device, s.params);
+  BatchMatrix x(s.device, batch, 5), y(s.device, batch, 4), dy(s.device, batch, 4);
+  x.upload_row_major(random_vector(batch * 5, 1));
+  dy.upload_row_major(random_vector(batch * 4, 2));
+  auto ws = s.net->make_workspace(s.device);
+  s.net->forward(s.device, {&pbuf, 0}, x, y, *ws);
+  Buffer<float> g(s.device, s.params.size());
+  s.net->backward(s.device, {&pbuf, 0}, x, y, dy, {&g, 0}, false, nullptr, *ws);
+  const auto once = g.read();
+  const auto base = random_vector(s.params.size(), 3);
+  g.write(base);
+  s.net->backward(s.device, {&pbuf, 0}, x, y, dy, {&g, 0}, true, nullptr, *ws);
+  const auto sum = g.read();
+  for (std::size_t i = 0; i < sum.size(); ++i)
+    ASSERT_NEAR(sum[i], base[i] + once[i], 1e-6 * (1 + std::abs(base[i]) + std::abs(once[i]))) << i;
+}
+
+TEST(FullyFusedMLP, BitForBitDeterministic) {
+  Small s(Json{{"n_neurons", 64}}, 32, 4);
+  const std::uint32_t batch = 2000;  // several weight-gradient chunks
+  Buffer<float> pbuf(s.device, s.params);
+  BatchMatrix x(s.device, batch, 32), dy(s.device, batch, 4);
+  x.upload_row_major(random_vector(batch * 32, 1));
+  dy.upload_row_major(random_vector(batch * 4, 2));
+  std::vector<float> out[2], grads[2], dxs[2];
+  for (int run = 0; run < 2; ++run) {
+    auto ws = s.net->make_workspace(s.device);
+    BatchMatrix y(s.device, batch, 4), dx(s.device, batch, 32);
+    Buffer<float> g(s.device, s.params.size());
+    s.net->forward(s.device, {&pbuf, 0}, x, y, *ws);
+    s.net->backward(s.device, {&pbuf, 0}, x, y, dy, {&g, 0}, false, &dx, *ws);
+    out[run] = y.download_row_major();
+    grads[run] = g.read();
+    dxs[run] = dx.download_row_major();
+  }
+  auto same = [](const std::vector<float>& a, const std::vector<float>& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+  };
+  EXPECT_TRUE(same(out[0], out[1]));
+  EXPECT_TRUE(same(grads[0], grads[1]));
+  EXPECT_TRUE(same(dxs[0], dxs[1]));
+}
+
+// Central differences of L = sum(c .* f(x)), with a smooth network (hidden activation None, smooth heads),
+// evaluated on the device in float (so the device's forward and backward are checked against each other)
+// and on the double reference (which checks the reference itself).
+TEST(FullyFusedMLP, GradientsMatchCentralFiniteDifferences) {
+  Small s(Json{{"activation", "None"}});
+  const std::uint32_t batch = 40, n_in = 5, n_out = 4;
+  const auto xh = random_vector(batch * n_in, 11);
+  const auto ch = random_vector(batch * n_out, 12);
+  Buffer<float> pbuf(s.device, s.params);
+  BatchMatrix x(s.device, batch, n_in), y(s.device, batch, n_out), c(s.device, batch, n_out), dx(s.device, batch, n_in);
+  x.upload_row_major(xh);
+  c.upload_row_major(ch);
+  auto ws = s.net->make_workspace(s.device);
+  s.net->forward(s.device, {&pbuf, 0}, x, y, *ws);
+  Buffer<float> g(s.device, s.params.size());
+  s.net->backward(s.device, {&pbuf, 0}, x, y, c, {&g, 0}, false, &dx, *ws);
+  const auto grads = g.read();
+  const auto dxh = dx.download_row_major();
+
+  auto device_loss = [&](const std::vector<float>& p, const std::vector<float>& xin) {
+    pbuf.write(p);
+    x.upload_row_major(xin);
+    s.net->inference(s.device, {&pbuf, 0}, x, y);
+    const auto yh = y.download_row_major();
+    double l = 0;
+    for (std::size_t i = 0; i < yh.size(); ++i) l += double(ch[i]) * yh[i];
+    return l;
+  };
+  auto ref_loss = [&](const std::vector<float>& p, const std::vector<float>& xin) {
+    Reference r(*s.net, p);
+    const Mat yv = r.forward(to_mat(xin, batch, n_in));
+    return (yv.array() * to_mat(ch, batch, n_out).array()).sum();
+  };
+  Reference r(*s.net, s.params);
+  r.forward(to_mat(xh, batch, n_in));
+  std::vector<double> ref_dp;
+  Mat ref_dx;
+  r.backward(to_mat(xh, batch, n_in), to_mat(ch, batch, n_out), ref_dp, ref_dx);
+
+  const float h_dev = 1e-2f, h_ref = 1e-3f;
+  std::mt19937 pick(1);
+  for (int i = 0; i < 24; ++i) {  // a sample of parameters (biases included) and inputs
+    const std::size_t idx = pick() % s.params.size();
+    auto p = s.params;
+    p[idx] = s.params[idx] + h_dev;
+    const double lp = device_loss(p, xh);
+    p[idx] = s.params[idx] - h_dev;
+    const double lm = device_loss(p, xh);
+    const double fd_dev = (lp - lm) / (2.0 * double(h_dev));
+    EXPECT_NEAR(grads[idx], fd_dev, 2e-3 * (1 + std::abs(fd_dev))) << "parameter " << idx << " (device FD)";
+    p = s.params;
+    p[idx] = s.params[idx] + h_ref;
+    const double rp = ref_loss(p, xh);
+    p[idx] = s.params[idx] - h_ref;
+    const double rm = ref_loss(p, xh);
+    const double step = double(s.params[idx] + h_ref) - double(s.params[idx] - h_ref);  // the float step taken
+    EXPECT_NEAR(ref_dp[idx], (rp - rm) / step, 1e-6 * (1 + std::abs(ref_dp[idx]))) << "parameter " << idx << " (reference FD)";
+  }
+  for (int i = 0; i < 12; ++i) {
+    const std::size_t idx = pick() % xh.size();
+    auto xp = xh;
+    xp[idx] = xh[idx] + h_dev;
+    const double lp = device_loss(s.params, xp);
+    xp[idx] = xh[idx] - h_dev;
+    const double lm = device_loss(s.params, xp);
+    const double fd = (lp - lm) / (2.0 * double(h_dev));
+    EXPECT_NEAR(dxh[idx], fd, 2e-3 * (1 + std::abs(fd))) << "input " << idx << " (device FD)";
+    EXPECT_NEAR(ref_dx(idx / n_in, idx % n_in), dxh[idx], 1e-4 * (1 + std::abs(fd))) << "input " << idx;
+  }
+}
+
+TEST(FullyFusedMLP, InitialisationIsDeterministicAndScaled) {
+  Small a, b;
+  std::vector<float> p1(a.net->n_params()), p2(a.net->n_params()), p3(a.net->n_params());
+  a.net->initialize_params(p1.data(), 42);
+  b.net->initialize_params(p2.data(), 42);
+  a.net->initialize_params(p3.data(), 43);
+  EXPECT_EQ(p1, p2);
+  EXPECT_NE(p1, p3);
+  // Layer 0 weights within the He bound sqrt(6 / fan_in), biases zero.
+  const std::uint32_t n_in = a.net->layer_inputs(0);
+  const double bound = std::sqrt(6.0 / n_in);
+  for (std::uint32_t j = 0; j < a.net->layer_outputs(0); ++j) {
+    for (std::uint32_t k = 0; k < n_in; ++k) EXPECT_LE(std::abs(p1[j * (n_in + 1) + k]), bound);
+    EXPECT_EQ(p1[j * (n_in + 1) + n_in], 0.0f);
+  }
+}
+
+TEST(FullyFusedMLP, ParameterCountAndHyperparameters) {
+  auto net = make_mlp({{"otype", "FullyFusedMLP"}, {"n_neurons", 32}, {"n_hidden_layers", 2}, {"skip_layers", {1}}}, 3, 2);
+  // (3+1)*32 + (32+3+1)*32 + (32+1)*2
+  EXPECT_EQ(net->n_params(), 4u * 32 + 36u * 32 + 33u * 2);
+  const Json hp = net->hyperparams();
+  EXPECT_EQ(hp.at("type"), "FullyFusedMLP");
+  EXPECT_EQ(hp.at("n_neurons"), 32);
+  auto again = make_mlp(hp, 3, 2);
+  EXPECT_EQ(again->hyperparams(), hp);
+  EXPECT_EQ(again->n_params(), net->n_params());
+}
+
+void expect_config_error(const Json& cfg, const std::string& pointer, const std::string& fragment,
+                         std::uint32_t n_in = 3, std::uint32_t n_out = 4) {
+  try {
+    create_network(cfg, n_in, n_out, "/network");
+    ADD_FAILURE() << "no error for " << cfg.dump();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.pointer(), pointer) << e.what();
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+  }
+}
+
+TEST(FullyFusedMLP, ConfigErrorsNameTheKey) {
+  expect_config_error({{"n_neurons", 48}}, "/network/n_neurons", "256");
+  expect_config_error({{"n_neurons", 64}, {"dropout", 0.1}}, "/network/dropout", "unknown key");
+  expect_config_error({{"output_heads", {{{"n_dims", 1}}, {{"n_dims", 2}}}}}, "/network/output_heads", "sum to 3");
+  expect_config_error({{"n_hidden_layers", 3}, {"skip_layers", {3}}}, "/network/skip_layers", "[1, 2]");
+  expect_config_error({{"n_hidden_layers", 3}, {"skip_layers", {0}}}, "/network/skip_layers/0", "[1,");
+  expect_config_error({{"output_activation", "Sigmoid"}, {"output_heads", {{{"n_dims", 4}}}}},
+                      "/network/output_heads", "not both");
+  expect_config_error({{"output_heads", {{{"n_dims", 4}, {"activation", "Swish"}}}}},
+                      "/network/output_heads/0/activation", "Softplus");
+  expect_config_error({{"activation", "Sigmoid"}}, "/network/activation", "ReLU");
+  expect_config_error({{"n_hidden_layers", 0}}, "/network/n_hidden_layers", "");
+}
+
+TEST(FullyFusedMLP, BadCallsAreInvalidArguments) {
+  Small s;
+  Buffer<float> pbuf(s.device, s.params);
+  BatchMatrix x(s.device, 10, 6), y(s.device, 10, 4);
+  EXPECT_THROW(s.net->inference(s.device, {&pbuf, 0}, x, y), InvalidArgument);  // 6 columns, network takes 5
+  BatchMatrix x5(s.device, 10, 5);
+  EXPECT_THROW(s.net->inference(s.device, {&pbuf, 1}, x5, y), InvalidArgument);  // slice past the buffer
+  auto ws = s.net->make_workspace(s.device);
+  Buffer<float> g(s.device, s.params.size());
+  EXPECT_THROW(s.net->backward(s.device, {&pbuf, 0}, x5, y, y, {&g, 0}, false, nullptr, *ws), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace relit::nn
