@@ -366,7 +366,7 @@ TEST(EncConfig, ErrorsNameTheJsonPointer) {
                      "/encoding/nested/0/n_dims_to_encode | "));
   EXPECT_TRUE(starts(config_error({{"type", "Composite"}, {"nested", {{{"type", "Identity"}, {"n_dims_to_encode", 2}}}}}, 4),
                      "/encoding/nested | "));
-  EXPECT_TRUE(starts(config_error({{"type", "Composite"}}, 4), "/encoding/nested | "));
+  EXPECT_TRUE(starts(config_error({{"type", "Composite"}, {"nested", Json::array()}}, 4), "/encoding/nested | "));
 }
 
 TEST(EncConfig, DefaultsAreResolvedAndRebuildable) {

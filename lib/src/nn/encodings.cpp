@@ -53,7 +53,7 @@ std::unique_ptr<Encoding> make_hash_grid(config::Reader& r, std::uint32_t n_dims
 }
 
 std::unique_ptr<Encoding> make_composite(config::Reader& r, std::uint32_t n_dims) {
-  const Json nested = r.sub("nested", Json::array(), "array",
+  const Json nested = r.sub("nested", Json::array({Json{{"type", "Identity"}}}), "array",
                             "nested encodings, each an encoding object with \"n_dims_to_encode\" (the last may "
                             "omit it and take the remaining dims)");
   if (!nested.is_array() || nested.empty())
