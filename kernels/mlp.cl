@@ -299,15 +299,23 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// Weight gradients of one layer: partial[c][off + j * stride + k] = sum over the tiles of chunk c of
-// sum_s dZ[s][j] * in[s][k], where in = [a (a_n columns), x (x_n columns), 1 (the bias column)].
+// Weight gradients of one layer: partial[c][off + j * n_in + k] = sum over the tiles of chunk c of
+// sum_s dZ[s][j] * in[s][k], where in = [a (a_n columns), x (x_n columns), 1 (the bias column)];
 // dz and a start at dz_off and a_off (the layer's region of the workspace).
-// One work-item = one chunk x one DW_RJ x DW_RK block; the chunk index varies slowest, so consecutive
-// work-items (one work-group, one core) reuse the chunk's rows from cache. Partial sums go to their own
-// slot: no atomics, and the reduction below adds chunks in a fixed order (bit-for-bit reproducible).
+//
+// One work-item = one chunk x DW_ROWS rows of dW. It walks its chunk in sub-chunks of `sub_tiles` tiles
+// (sized by the host to stay in L2); for each sub-chunk it computes every DW_RJ x DW_RK register block of
+// its rows (float8 accumulators, lanes = samples) and adds the lane sums into its partial rows. The
+// sub-chunk's dZ rows stay in L1 and its inputs in L2 while they are reused by all blocks. Partial sums go
+// to per-chunk slots: no atomics, and the reduction below adds chunks in a fixed order (bit-for-bit
+// reproducible).
 // ---------------------------------------------------------------------------------------------------------
+#ifndef DW_ROWS
+#define DW_ROWS (4 * DW_RJ)
+#endif
+
 __kernel void mlp_weight_grad_partial(const uint n_tiles, const uint tiles_per_chunk, const uint n_chunks,
-                                      __global const float* restrict dz, const uint n_out,
+                                      const uint sub_tiles, __global const float* restrict dz, const uint n_out,
                                       __global const float* restrict a, const uint a_cols, const uint a_n,
                                       __global const float* restrict x, const uint x_cols, const uint x_n,
                                       const uint bias, __global const float* restrict ones,
@@ -316,62 +324,68 @@ __kernel void mlp_weight_grad_partial(const uint n_tiles, const uint tiles_per_c
   dz += dz_off;
   a += a_off;
   const uint n_in = a_n + x_n + bias;
-  const uint jblocks = (n_out + DW_RJ - 1) / DW_RJ, kblocks = (n_in + DW_RK - 1) / DW_RK;
+  const uint regions = (n_out + DW_ROWS - 1) / DW_ROWS;
   const size_t gid = get_global_id(0);
-  if (gid >= (size_t)n_chunks * jblocks * kblocks) return;
-  const uint c = gid / (jblocks * kblocks);
-  const uint rem = gid - c * (jblocks * kblocks);
-  const uint j0 = (rem / kblocks) * DW_RJ, k0 = (rem % kblocks) * DW_RK;
+  if (gid >= (size_t)n_chunks * regions) return;
+  const uint c = gid / regions;
+  const uint jr0 = (gid % regions) * DW_ROWS, jr1 = min(jr0 + DW_ROWS, n_out);
   const uint t0 = c * tiles_per_chunk, t1 = min(t0 + tiles_per_chunk, n_tiles);
-
-  // Column sources: rows past the end repeat the last row, columns past the end read the ones (their
-  // results are not stored), so the inner loop has no branches.
-  __global const float* dzp[DW_RJ];
-  __global const float* inp[DW_RK];
-  size_t instep[DW_RK];
-#pragma unroll
-  for (uint r = 0; r < DW_RJ; ++r) dzp[r] = dz + min(j0 + r, n_out - 1) * TILE;
-#pragma unroll
-  for (uint r = 0; r < DW_RK; ++r) {
-    const uint k = k0 + r;
-    if (k < a_n) { inp[r] = a + k * TILE; instep[r] = (size_t)a_cols * TILE; }
-    else if (k < a_n + x_n) { inp[r] = x + (k - a_n) * TILE; instep[r] = (size_t)x_cols * TILE; }
-    else { inp[r] = ones; instep[r] = 0; }
-  }
+  __global float* out = partial + (size_t)c * partial_stride + layer_off;
   const size_t dzstep = (size_t)n_out * TILE;
 
-  float8 acc[DW_RJ][DW_RK];
+  for (uint ts = t0; ts < t1; ts += sub_tiles) {
+    const uint te = min(ts + sub_tiles, t1);
+    const bool first = ts == t0;
+    for (uint j0 = jr0; j0 < jr1; j0 += DW_RJ) {
+      // Rows past the end repeat the last row, columns past the end read the ones: no branches in the
+      // inner loop; those results are not stored.
+      __global const float* dzp[DW_RJ];
 #pragma unroll
-  for (uint i = 0; i < DW_RJ; ++i)
+      for (uint i = 0; i < DW_RJ; ++i) dzp[i] = dz + min(j0 + i, n_out - 1) * TILE;
+      for (uint k0 = 0; k0 < n_in; k0 += DW_RK) {
+        __global const float* inp[DW_RK];
+        size_t instep[DW_RK];
 #pragma unroll
-    for (uint r = 0; r < DW_RK; ++r) acc[i][r] = (float8)0.0f;
-  for (uint t = t0; t < t1; ++t) {
+        for (uint r = 0; r < DW_RK; ++r) {
+          const uint k = k0 + r;
+          if (k < a_n) { inp[r] = a + k * TILE; instep[r] = (size_t)a_cols * TILE; }
+          else if (k < a_n + x_n) { inp[r] = x + (k - a_n) * TILE; instep[r] = (size_t)x_cols * TILE; }
+          else { inp[r] = ones; instep[r] = 0; }
+        }
+        float8 acc[DW_RJ][DW_RK];
 #pragma unroll
-    for (uint h = 0; h < 2; ++h) {
-      float8 xv[DW_RK];
+        for (uint i = 0; i < DW_RJ; ++i)
 #pragma unroll
-      for (uint r = 0; r < DW_RK; ++r) xv[r] = vload8(h, inp[r] + t * instep[r]);
+          for (uint r = 0; r < DW_RK; ++r) acc[i][r] = (float8)0.0f;
+        for (uint t = ts; t < te; ++t) {
 #pragma unroll
-      for (uint i = 0; i < DW_RJ; ++i) {
-        const float8 d = vload8(h, dzp[i] + t * dzstep);
+          for (uint h = 0; h < 2; ++h) {
+            float8 xv[DW_RK];
 #pragma unroll
-        for (uint r = 0; r < DW_RK; ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);
+            for (uint r = 0; r < DW_RK; ++r) xv[r] = ((__global const float8*)(inp[r] + t * instep[r]))[h];
+#pragma unroll
+            for (uint i = 0; i < DW_RJ; ++i) {
+              const float8 d = ((__global const float8*)(dzp[i] + t * dzstep))[h];
+#pragma unroll
+              for (uint r = 0; r < DW_RK; ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);
+            }
+          }
+        }
+#pragma unroll
+        for (uint i = 0; i < DW_RJ; ++i)
+#pragma unroll
+          for (uint r = 0; r < DW_RK; ++r) {
+            if (j0 + i < jr1 && k0 + r < n_in) {
+              const float8 v = acc[i][r];
+              const float4 s4 = v.lo + v.hi;
+              const float2 s2 = s4.lo + s4.hi;
+              __global float* o = out + (j0 + i) * n_in + k0 + r;
+              *o = first ? s2.x + s2.y : *o + (s2.x + s2.y);
+            }
+          }
       }
     }
   }
-  __global float* out = partial + (size_t)c * partial_stride + layer_off;
-  const uint stride = n_in;
-#pragma unroll
-  for (uint i = 0; i < DW_RJ; ++i)
-#pragma unroll
-    for (uint r = 0; r < DW_RK; ++r) {
-      if (j0 + i < n_out && k0 + r < n_in) {
-        const float8 v = acc[i][r];
-        const float4 s4 = v.lo + v.hi;
-        const float2 s2 = s4.lo + s4.hi;
-        out[(j0 + i) * stride + k0 + r] = s2.x + s2.y;
-      }
-    }
 }
 
 // grads[i] (+)= sum_c partial[c * partial_stride + i], chunks added in order; 8 parameters per work-item.

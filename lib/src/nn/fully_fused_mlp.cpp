@@ -22,11 +22,14 @@ Activation activation_from_name(const std::string& name) {
 
 // Register block sizes of the kernels (see kernels/mlp.cl); measured on AVX2 (docs/networks.md).
 constexpr std::uint32_t kForwardBlock = 4;
-constexpr std::uint32_t kWeightGradRows = 4, kWeightGradCols = 2;
+constexpr std::uint32_t kWeightGradRows = 4, kWeightGradCols = 3;
+constexpr std::uint32_t kWeightGradRegion = 4 * kWeightGradRows;  // rows of dW per work-item (DW_ROWS)
 
-// Weight-gradient partials: a chunk of tiles should stay in a core's L2 while all blocks of a layer read it,
-// and the partial buffer (chunks x parameters) should stay small.
-constexpr std::size_t kChunkBytes = 256 * 1024;
+// Weight-gradient partials: the batch is cut into a few chunks per compute unit (load balance; the partial
+// buffer is chunks x parameters, kept under kMaxPartialFloats), each walked in sub-chunks whose inputs stay
+// in a core's L2 (kSubChunkBytes) while every register block of the work-item's rows reads them.
+constexpr std::size_t kChunksPerComputeUnit = 8;
+constexpr std::size_t kSubChunkBytes = 256 * 1024;
 constexpr std::size_t kMaxPartialFloats = std::size_t(1) << 23;
 
 // splitmix64: a fixed, portable generator (std:: distributions differ between standard libraries).
@@ -42,7 +45,7 @@ struct SplitMix {
 };
 
 struct ChunkPlan {
-  std::uint32_t n_tiles = 0, tiles_per_chunk = 1, n_chunks = 1;
+  std::uint32_t n_tiles = 0, tiles_per_chunk = 1, n_chunks = 1, sub_tiles = 1;
 };
 
 class MlpWorkspace final : public Workspace {
@@ -189,7 +192,7 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
       {"HIDDEN_ACT", std::to_string(static_cast<int>(m_hidden_activation))},
       {"OUT_ACTS", acts},                         {"BIAS", m_bias ? "1" : "0"},
       {"FWD_R", std::to_string(kForwardBlock)},   {"DW_RJ", std::to_string(kWeightGradRows)},
-      {"DW_RK", std::to_string(kWeightGradCols)}};
+      {"DW_RK", std::to_string(kWeightGradCols)}, {"DW_ROWS", std::to_string(kWeightGradRegion)}};
   const Program program = device.program("mlp.cl", defines);
   auto k = std::make_unique<Kernels>();
   k->device = device;
@@ -291,18 +294,18 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     return;
   }
 
-  // Chunks of the batch for the weight-gradient partials (fixed for a given batch: reproducible sums).
-  std::uint32_t max_cols = 0;
-  for (std::uint32_t l = 0; l <= m_n_hidden; ++l)
-    max_cols = std::max(max_cols, layer_inputs(l) + 1 + layer_outputs(l));
+  // Chunks of the batch for the weight-gradient partials (fixed for a given batch and device: reproducible).
+  std::uint32_t max_in = 0;
+  for (std::uint32_t l = 0; l <= m_n_hidden; ++l) max_in = std::max(max_in, layer_inputs(l) + 1);
   ChunkPlan plan;
   plan.n_tiles = n_tiles;
-  const std::size_t cache_tiles = std::max<std::size_t>(4, kChunkBytes / (std::size_t(max_cols) * kBatchTile * 4));
   const std::size_t budget = std::max<std::size_t>(1, kMaxPartialFloats / np);
-  const std::size_t wanted = (n_tiles + cache_tiles - 1) / cache_tiles;
-  const std::size_t chunks = std::clamp<std::size_t>(wanted, 1, budget);
+  const std::size_t wanted = kChunksPerComputeUnit * std::max(1u, device.info().compute_units);
+  const std::size_t chunks = std::clamp<std::size_t>(std::min(wanted, budget), 1, n_tiles);
   plan.tiles_per_chunk = static_cast<std::uint32_t>((n_tiles + chunks - 1) / chunks);
   plan.n_chunks = (n_tiles + plan.tiles_per_chunk - 1) / plan.tiles_per_chunk;
+  plan.sub_tiles = static_cast<std::uint32_t>(
+      std::clamp<std::size_t>(kSubChunkBytes / (std::size_t(max_in) * kBatchTile * sizeof(float)), 4, 64));
   if (ws->partial.size() < std::size_t(plan.n_chunks) * np)
     ws->partial = Buffer<float>(device, std::size_t(plan.n_chunks) * np);
   if (ws->ones.empty()) {
@@ -323,17 +326,18 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     const std::uint32_t n_out = layer_outputs(l);
     const std::uint32_t a_n = l == 0 ? 0 : m_width;
     const std::uint32_t x_n = l == 0 || has_skip(l) ? m_n_input : 0;
-    const std::uint32_t jblocks = (n_out + kWeightGradRows - 1) / kWeightGradRows;
-    const std::uint32_t kblocks = (a_n + x_n + (m_bias ? 1 : 0) + kWeightGradCols - 1) / kWeightGradCols;
+    const std::uint32_t regions = (n_out + kWeightGradRegion - 1) / kWeightGradRegion;
     // Hidden layer l's dZ and the activations feeding layer l (h_(l-1)), at their offsets in the workspace.
     const std::size_t dz_off = std::size_t(l) * ws->padded * m_width;
     const std::size_t a_off = l == 0 ? 0 : std::size_t(l - 1) * ws->padded * m_width;
-    wk.arg(0, n_tiles).arg(1, plan.tiles_per_chunk).arg(2, plan.n_chunks);
-    wk.arg(3, ws->dz).arg(4, n_out).arg(5, ws->act).arg(6, m_width).arg(7, a_n);
-    wk.arg(8, input.data()).arg(9, m_n_input).arg(10, x_n).arg(11, static_cast<std::uint32_t>(m_bias ? 1 : 0));
-    wk.arg(12, ws->ones).arg(13, ws->partial).arg(14, np).arg(15, layer_offset(l));
-    wk.arg(16, static_cast<std::uint32_t>(dz_off)).arg(17, static_cast<std::uint32_t>(a_off));
-    wk.launch(std::size_t(plan.n_chunks) * jblocks * kblocks, k.local_weight_grad);
+    wk.args(n_tiles, plan.tiles_per_chunk, plan.n_chunks, plan.sub_tiles, ws->dz, n_out, ws->act, m_width, a_n,
+            input.data(), m_n_input, x_n, static_cast<std::uint32_t>(m_bias ? 1 : 0), ws->ones, ws->partial, np,
+            layer_offset(l), static_cast<std::uint32_t>(dz_off), static_cast<std::uint32_t>(a_off));
+    // Few, long work-items: keep at least ~4 work-groups per compute unit for load balance.
+    const std::size_t items = std::size_t(plan.n_chunks) * regions;
+    std::size_t local = k.local_weight_grad;
+    while (local > 1 && items / local < 4 * std::size_t(std::max(1u, device.info().compute_units))) local /= 2;
+    wk.launch(items, local);
   }
 
   // 3. Fixed-order sum over chunks into the gradient slice.
