@@ -62,9 +62,7 @@ FloatArray download(const nn::BatchMatrix& m) {
 }
 
 FloatArray to_array(const std::vector<float>& v) {
-  FloatArray out(static_cast<py::ssize_t>(v.size()));
-  std::copy(v.begin(), v.end(), out.mutable_data());
-  return out;
+  return FloatArray(std::vector<py::ssize_t>{static_cast<py::ssize_t>(v.size())}, v.data());  // copies
 }
 
 // Parameters and gradients of one component on one device.
