@@ -20,6 +20,7 @@ int run(const std::vector<std::string>& args) {
     if (!log_level.empty()) set_log_level(parse_log_level(log_level));
   });
   add_devices_command(app);
+  add_generate_command(app);
 
   std::vector<std::string> reversed(args.rbegin(), args.rend() - (args.empty() ? 0 : 1));
   try {

@@ -40,7 +40,7 @@ TEST(Dataset, PlanFollowsTheLightingProtocols) {
     const double dist = norm(f.light.position);
     EXPECT_GE(dist, 3.0 - 1e-5);
     EXPECT_LE(dist, 5.0 + 1e-5);
-    EXPECT_NEAR(norm(f.camera.position()), 4.5, 1e-4);
+    EXPECT_NEAR(norm(f.camera.position()), 4.0, 1e-4);
     EXPECT_GE(f.light.intensity[0], 50.0f);
     EXPECT_LE(f.light.intensity[0], 900.0f);
     lo = std::min(lo, double(f.light.intensity[0])), hi = std::max(hi, double(f.light.intensity[0]));

@@ -218,7 +218,7 @@ TEST(PathTraceRender, WhiteFurnaceRendersTheEnvironmentRadianceEverywhere) {
   Json j = {{"medium", {{"source", {{"type", "cloud"}, {"resolution", 24}, {"seed", 2}}}, {"density_scale", 8.0},
                         {"albedo", 1.0}, {"g", 0.5}}},
             {"environment", {{"radiance", {0.7, 0.7, 0.7}}, {"visible", true}}},
-            {"cameras", {{{"position", {0.5, -3.5, 1.0}}, {"camera_angle_x", 0.9}, {"width", 12}, {"height", 12}}}}};
+            {"cameras", {{{"position", {0.3, -3.0, 0.4}}, {"camera_angle_x", 0.45}, {"width", 12}, {"height", 12}}}}};
   const Scene scene = Scene::from_json(j);
   RenderSettings rs;
   rs.spp = 64;

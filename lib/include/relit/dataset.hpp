@@ -4,7 +4,7 @@
 //   out/transforms_{train,val,test}.json   camera_angle_x, w, h, environment, frames [{file_path,
 //                                          preview_path, transform_matrix, light {type, position, intensity}}]
 //   out/{train,val,test}/r_000.exr         linear float RGBA (alpha = 1 - transmittance of the camera ray)
-//   out/{train,val,test}/r_000.png         8-bit sRGB previews
+//   out/{train,val,test}/r_000.png         8-bit sRGB previews, tone-mapped x/(1+x) (the EXR holds the data)
 //   out/scene.json                         the generating scene (resolved); out/environment.exr for 'env+point'
 //   out/transforms_test_distance_{3,5,7,10}.json, ..._intensity_{400,800,1200,1600}.json  (generalisation sets)
 //
@@ -35,7 +35,7 @@ struct DatasetSettings {
   std::uint32_t train = 100, val = 20, test = 50;
   std::uint32_t spp = 64;
   std::uint32_t max_bounces = 0;   ///< 0 = unlimited
-  float camera_distance = 4.5f;    ///< the box [-1, 1]^3 fits the view at the default field of view
+  float camera_distance = 4.0f;    ///< the scene box [-1, 1]^3 nearly fills the view at the default field of view
   float camera_angle_x = 0.8f;
   float light_distance_min = 3.0f, light_distance_max = 5.0f;
   float intensity_min = 600.0f, intensity_max = 600.0f;  ///< W/sr (white); equal = fixed

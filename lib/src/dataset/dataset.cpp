@@ -216,7 +216,10 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
         if (s.previews) {
           Image rgb(r.image.width, r.image.height, 3);
           for (std::size_t p = 0; p < std::size_t(r.image.width) * r.image.height; ++p)
-            for (int c = 0; c < 3; ++c) rgb.pixels[p * 3 + c] = r.image.pixels[p * 4 + c];
+            for (int c = 0; c < 3; ++c) {
+              const float v = std::max(r.image.pixels[p * 4 + c], 0.0f);
+              rgb.pixels[p * 3 + c] = v / (1.0f + v);  // Reinhard: highlights stay readable in 8 bits
+            }
           write_image((tmp / (stem + ".png")).string(), rgb);
         }
         Json m = Json::array();

@@ -87,25 +87,26 @@ ProceduralMedium make_cloud(int res, unsigned seed) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   // A cumulus: a wide base row of blobs and smaller, higher ones piled on top.
   std::vector<Blob> blobs;
-  const int n = 14;
+  const int n = 16;
   for (int b = 0; b < n; ++b) {
     const double a = u(rng) * 2 * kPi, rad = std::sqrt(u(rng));
     const double height = u(rng);
-    const double spread = 0.55 * (1.0 - 0.55 * height);
-    blobs.push_back({spread * rad * std::cos(a), spread * rad * std::sin(a), -0.25 + 0.55 * height,
-                     0.22 + 0.2 * u(rng) * (1.0 - 0.5 * height)});
+    const double spread = 0.6 * (1.0 - 0.5 * height);
+    blobs.push_back({spread * rad * std::cos(a), spread * rad * std::sin(a), -0.35 + 0.6 * height,
+                     (0.26 + 0.16 * u(rng)) * (1.0 - 0.35 * height)});
   }
   ProceduralMedium m{Grid(res, res, res, 1), Grid()};
   fill(m.density, [&](int i, int j, int k, double x, double y, double z) {
-    double field = 0;
+    double field = -1e9;  // negative outside every blob, so noise cannot grow fog far away
     for (const auto& b : blobs) {
       const double d = std::sqrt((x - b.x) * (x - b.x) + (y - b.y) * (y - b.y) + (z - b.z) * (z - b.z)) / b.r;
       field = std::max(field, 1.0 - d);
     }
-    const double noise = fbm_noise(x * 3.0 + 11, y * 3.0 + 7, z * 3.0 + 3, seed, 5);
-    const double v = field + 0.45 * (noise - 0.5) - 0.02;
-    double dens = smoothstep(0.0, 0.25, v);
-    dens *= smoothstep(-0.62, -0.45, z);  // the flat base of a cumulus
+    // fBm erodes and billows the surface of the blob union; the core stays dense.
+    const double noise = fbm_noise(x * 3.5 + 11, y * 3.5 + 7, z * 3.5 + 3, seed, 5);
+    const double v = field + 0.4 * (noise - 0.55);
+    double dens = smoothstep(0.0, 0.35, v);
+    dens *= smoothstep(-0.62, -0.48, z);  // the flat base of a cumulus
     m.density.at(i, j, k) = float(dens * box_fade(x, y, z));
   });
   return m;

@@ -287,7 +287,7 @@ const std::vector<std::string>& Scene::builtin_names() {
 Json Scene::builtin_json(const std::string& name, unsigned seed, int resolution) {
   if (name == "cloud")
     return {{"medium", {{"source", {{"type", "cloud"}, {"resolution", resolution}, {"seed", seed}}},
-                        {"density_scale", 25.0}, {"albedo", {0.96, 0.96, 0.96}}, {"g", 0.4}}}};
+                        {"density_scale", 20.0}, {"albedo", {0.96, 0.96, 0.96}}, {"g", 0.4}}}};
   if (name == "smoke")
     return {{"medium", {{"source", {{"type", "smoke"}, {"resolution", resolution}, {"seed", seed}}},
                         {"density_scale", 30.0}, {"albedo", {0.85, 0.85, 0.85}}, {"g", 0.2}}}};
