@@ -6,5 +6,6 @@
 namespace relit::python {
 
 void bind_cl(pybind11::module_& m);  // errors, devices, programs, logging, the CLI
+void bind_scene(pybind11::module_& m);  // scenes, the reference path tracer, dataset generation
 
 }  // namespace relit::python

@@ -7,4 +7,5 @@ PYBIND11_MODULE(_core, m) {
   m.doc() = "relit: neural relightable participating media on OpenCL (compiled core)";
   m.attr("__version__") = relit::version();
   relit::python::bind_cl(m);  // first: the exception translators the other parts rely on
+  relit::python::bind_scene(m);
 }
