@@ -352,3 +352,127 @@ TEST(PathTraceRender, ProgressIsReportedAndCancellationStops) {
 }
 
 }  // namespace relit
+
+namespace relit {
+
+namespace {
+
+// Double reference of the GGX + Lambert BRDF (DESIGN §4.4) with n = +z.
+double brdf_ref(const double wo[3], const double wi[3], double base, double r) {
+  if (wo[2] <= 0 || wi[2] <= 0) return 0;
+  double h[3] = {wo[0] + wi[0], wo[1] + wi[1], wo[2] + wi[2]};
+  const double hl = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+  for (auto& x : h) x /= hl;
+  const double nh = h[2], vh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2];
+  const double a2 = std::pow(r * r, 2), dd = nh * nh * (a2 - 1) + 1;
+  const double D = a2 / (kPi * dd * dd);
+  const double k = (r + 1) * (r + 1) / 8;
+  const double G = wi[2] / (wi[2] * (1 - k) + k) * wo[2] / (wo[2] * (1 - k) + k);
+  const double F = 0.04 + 0.96 * std::pow(2.0, (-5.55473 * vh - 6.98316) * vh);
+  return base / kPi + D * F * G / (4 * wi[2] * wo[2]);
+}
+
+}  // namespace
+
+TEST(PathTraceSampling, BrdfMatchesReferenceAndItsSamplerIsUnbiased) {
+  const Device dev = test::test_device();
+  Kernel k = dev.kernel("pathtrace_probe.cl", "probe_brdf_sample");
+  const cl_uint n = 200000;
+  Buffer<cl_float4> out(dev, n), out_f(dev, n);
+  const double wo[3] = {0.5, 0.2, std::sqrt(1 - 0.29)};
+  for (const double r : {0.2, 0.5, 0.9}) {
+    const double base = 0.6;
+    k.args(n, cl_uint(21), cl_float4{{float(wo[0]), float(wo[1]), float(wo[2]), float(r)}},
+           cl_float4{{float(base), float(base), float(base), 0}}, out, out_f)
+        .launch(n, 64);
+    const auto s = out.read(), f = out_f.read();
+    // Estimators of int f cos and of the hemisphere's area (2 pi) from the sampler's own pdf.
+    double est = 0, est2 = 0, area = 0, area2 = 0;
+    int checked = 0;
+    for (cl_uint i = 0; i < n; ++i) {
+      const double wi[3] = {s[i].s[0], s[i].s[1], s[i].s[2]};
+      const double pdf = s[i].s[3];
+      if (wi[2] <= 0 || pdf <= 0) continue;  // below the surface: contributes 0
+      const double ref = brdf_ref(wo, wi, base, r) * wi[2];
+      if (checked++ < 2000) ASSERT_NEAR(f[i].s[0], ref, 2e-3 * ref + 1e-6) << "BRDF value, r = " << r;
+      est += ref / pdf, est2 += (ref / pdf) * (ref / pdf);
+      area += 1 / pdf, area2 += 1 / (pdf * pdf);
+    }
+    // Host quadrature of int f cos over the hemisphere.
+    double integral = 0;
+    const int nt = 800, np = 800;
+    for (int a = 0; a < nt; ++a)
+      for (int b = 0; b < np; ++b) {
+        const double th = (a + 0.5) / nt * kPi / 2, ph = (b + 0.5) / np * 2 * kPi;
+        const double wi[3] = {std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th)};
+        integral += brdf_ref(wo, wi, base, r) * wi[2] * std::sin(th) * (kPi / 2 / nt) * (2 * kPi / np);
+      }
+    const double mean = est / n, sd = std::sqrt(std::max(est2 / n - mean * mean, 0.0) / n);
+    EXPECT_NEAR(mean, integral, 5 * sd + 2e-3 * integral) << "E[f cos / pdf] != int f cos, r = " << r;
+    const double am = area / n, asd = std::sqrt(std::max(area2 / n - am * am, 0.0) / n);
+    EXPECT_NEAR(am, 2 * kPi, 5 * asd + 1e-3) << "the sampler's pdf must be its density, r = " << r;
+  }
+}
+
+TEST(PathTraceRender, SolidSphereUnderAPointLightMatchesTheAnalyticShading) {
+  const Device dev = test::test_device();
+  const double radius = 0.6, base = 0.7, rough = 0.5, inten = 20;
+  Json j = {{"solid", {{"source", {{"type", "sphere"}, {"resolution", 64}, {"radius", radius}}},
+                       {"base_color", base}, {"roughness", rough}}},
+            {"lights", {{{"position", {2.0, -2.0, 3.0}}, {"intensity", inten}}}},
+            {"cameras", {{{"position", {0, -4, 0}}, {"camera_angle_x", 0.18}, {"width", 8}, {"height", 8}}}}};
+  const Scene scene = Scene::from_json(j);
+  RenderSettings rs;
+  rs.spp = 256;
+  rs.seed = 2;
+  const RenderResult r = PathTracer(dev, scene).render(scene.cameras[0], scene.lights, rs);
+  const Camera& cam = scene.cameras[0];
+  const Float3 eye = cam.position();
+  const double lp[3] = {2, -2, 3};
+  Image expected(8, 8, 4);
+  const int sub = 6;
+  for (int py = 0; py < 8; ++py)
+    for (int px = 0; px < 8; ++px) {
+      double acc = 0;
+      for (int sy = 0; sy < sub; ++sy)
+        for (int sx = 0; sx < sub; ++sx) {
+          const Float3 df = cam.direction(px + (sx + 0.5) / sub, py + (sy + 0.5) / sub);
+          const double o[3] = {eye[0], eye[1], eye[2]}, d[3] = {df[0], df[1], df[2]};
+          const double b = o[0] * d[0] + o[1] * d[1] + o[2] * d[2];
+          const double c = o[0] * o[0] + o[1] * o[1] + o[2] * o[2] - radius * radius;
+          ASSERT_GT(b * b - c, 0) << "every pixel must see the sphere";
+          const double t = -b - std::sqrt(b * b - c);
+          const double x[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+          const double nrm[3] = {x[0] / radius, x[1] / radius, x[2] / radius};
+          double l[3] = {lp[0] - x[0], lp[1] - x[1], lp[2] - x[2]};
+          const double dist = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+          for (auto& v : l) v /= dist;
+          // Shade in a frame where n = +z.
+          double t1[3] = {nrm[1], -nrm[0], 0};
+          double tl = std::sqrt(t1[0] * t1[0] + t1[1] * t1[1]);
+          if (tl < 1e-9) t1[0] = 1, t1[1] = 0, tl = 1;
+          for (auto& v : t1) v /= tl;
+          const double t2[3] = {nrm[1] * t1[2] - nrm[2] * t1[1], nrm[2] * t1[0] - nrm[0] * t1[2], nrm[0] * t1[1] - nrm[1] * t1[0]};
+          auto local = [&](const double v[3], double out[3]) {
+            out[0] = v[0] * t1[0] + v[1] * t1[1] + v[2] * t1[2];
+            out[1] = v[0] * t2[0] + v[1] * t2[1] + v[2] * t2[2];
+            out[2] = v[0] * nrm[0] + v[1] * nrm[1] + v[2] * nrm[2];
+          };
+          const double wov[3] = {-d[0], -d[1], -d[2]};
+          double wo_l[3], wi_l[3];
+          local(wov, wo_l);
+          local(l, wi_l);
+          if (wi_l[2] > 0) acc += brdf_ref(wo_l, wi_l, base, rough) * wi_l[2] * inten / (dist * dist);
+        }
+      for (int ch = 0; ch < 3; ++ch) expected.at(px, py, ch) = float(acc / (sub * sub));
+      expected.at(px, py, 3) = 1.0f;
+    }
+  for (int p = 0; p < 64; ++p)
+    for (int ch = 0; ch < 4; ch += 3) {
+      const double e = expected.pixels[p * 4 + ch], a = r.image.pixels[p * 4 + ch];
+      const double sd = std::sqrt(r.variance.pixels[p * 4 + ch] / rs.spp);
+      EXPECT_NEAR(a, e, 5 * sd + 0.03 * e + 1e-3) << "pixel " << p << " channel " << ch << dump_images("solid", r.image, expected);
+    }
+}
+
+}  // namespace relit
