@@ -121,10 +121,10 @@ ProceduralMedium make_smoke(int res, unsigned seed) {
   fill(m.density, [&](int i, int j, int k, double x, double y, double z) {
     const double h = (z + 0.9) / 1.8;  // 0 at the source, 1 at the top
     const double cx = 0.25 * h * std::sin(freq * z + phase), cy = 0.2 * h * std::cos(0.7 * freq * z + phase);
-    const double radius = 0.08 + 0.4 * h;
+    const double radius = 0.06 + 0.3 * h;
     const double r2 = ((x - cx) * (x - cx) + (y - cy) * (y - cy)) / (radius * radius);
     const double noise = fbm_noise(x * 5 + 1, y * 5 + 2, z * 3 - 2 * h, seed, 5);
-    double dens = std::exp(-2.0 * r2) * (0.35 + 1.1 * noise) * (1.0 - 0.6 * h);
+    double dens = std::exp(-2.5 * r2) * std::max(0.0, 1.6 * noise - 0.25) * (1.0 - 0.5 * h);
     dens *= smoothstep(-0.9, -0.8, z);
     m.density.at(i, j, k) = float(std::clamp(dens, 0.0, 1.0) * box_fade(x, y, z));
   });
