@@ -15,5 +15,6 @@ int run(const std::vector<std::string>& args);
 // Each subcommand registers itself on the app; add new ones in cli.cpp.
 void add_devices_command(CLI::App& app);
 void add_config_reference_command(CLI::App& app);
+void add_generate_command(CLI::App& app);
 
 }  // namespace relit::cli

@@ -20,7 +20,7 @@ debian_packages=(
   libeigen3-dev libopenblas-dev                                   # host math, references, BLAS peer
   libgtest-dev libgmock-dev libbenchmark-dev                      # tests and benchmarks
   pybind11-dev nlohmann-json3-dev libcli11-dev                    # binding, JSON, command line
-  libopenvdb-dev                                                  # OpenVDB volume import
+  libopenvdb-dev libboost-iostreams-dev                           # OpenVDB volume import (its CMake module needs Boost.Iostreams)
   python3-dev python3-venv python3-pip                            # Python headers and venv
 )
 

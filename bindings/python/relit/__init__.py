@@ -26,3 +26,8 @@ __all__ = [
     "BuildError", "ClError", "ConfigError", "Device", "DeviceError", "DeviceInfo", "Error", "InvalidArgument",
     "IOError", "Program", "ProgramCheck", "__version__", "devices", "set_log_level",
 ]
+
+# Scenes, the reference path tracer and dataset generation.
+from ._core import Camera, PointLight, Progress, Scene, generate_dataset, render_reference  # noqa: F401,E402
+
+__all__ += ["Camera", "PointLight", "Progress", "Scene", "generate_dataset", "render_reference"]

@@ -1,0 +1,75 @@
+// pathtrace_probe.cl: kernels that expose the path tracer's building blocks to the tests (HG and BRDF
+// sampling, environment sampling, delta and ratio tracking), so each can be checked against a host reference.
+#include "pathtrace.clh"
+
+// out[i] = (wi, pdf) for wo = wo_in, from the random stream (seed, i).
+__kernel void probe_hg_sample(const uint n, const uint seed, const float4 wo_g, __global float4* out) {
+  const size_t i = get_global_id(0);
+  if (i >= n) return;
+  Rng rng = rng_init(seed, (uint)i, 0u);
+  const float u1 = rng_uniform(&rng), u2 = rng_uniform(&rng);
+  const float3 wi = hg_sample(wo_g.xyz, wo_g.w, u1, u2);
+  out[i] = (float4)(wi, hg_phase(dot(wo_g.xyz, wi), wo_g.w));
+}
+
+// out[i] = (wi, pdf) of the BRDF sampler, and f*cos in out_f[i].
+__kernel void probe_brdf_sample(const uint n, const uint seed, const float4 wo_r, const float4 base,
+                                __global float4* out, __global float4* out_f) {
+  const size_t i = get_global_id(0);
+  if (i >= n) return;
+  Rng rng = rng_init(seed, (uint)i, 0u);
+  const float u0 = rng_uniform(&rng), u1 = rng_uniform(&rng), u2 = rng_uniform(&rng);
+  const float3 nrm = (float3)(0.0f, 0.0f, 1.0f);
+  const float3 wi = brdf_sample(nrm, wo_r.xyz, wo_r.w, u0, u1, u2);
+  out[i] = (float4)(wi, brdf_pdf(nrm, wo_r.xyz, wi, wo_r.w));
+  out_f[i] = (float4)(brdf_eval(nrm, wo_r.xyz, wi, base.xyz, wo_r.w) * fmax(wi.z, 0.0f), 0.0f);
+}
+
+#define PROBE_SCENE_ARGS                                                                                   \
+  __global const float *density, const int4 density_dims, const float density_scale,                      \
+      __global const float *majorant, const int4 majorant_dims, __global const float4 *env,                 \
+      __global const float *env_pdf, __global const float *env_marginal, __global const float *env_conditional, \
+      const int4 env_dims
+
+#define PROBE_SCENE_INIT                                                                                   \
+  PtScene s;                                                                                               \
+  s.density = density; s.density_dims = density_dims; s.density_scale = density_scale;                   \
+  s.majorant = majorant; s.majorant_dims = majorant_dims; s.albedo = 0; s.albedo_dims = (int4)(0);        \
+  s.albedo_const = (float3)(1.0f); s.g = 0.0f; s.sdf = 0; s.sdf_dims = (int4)(0);                         \
+  s.base_color = (float3)(0.0f); s.roughness = 1.0f; s.env = env; s.env_pdf = env_pdf;                   \
+  s.env_marginal = env_marginal; s.env_conditional = env_conditional; s.env_dims = env_dims; s.env_scale = 1.0f;
+
+// Environment sampling: out[i] = (direction, pdf reported by the sampler); pdf_at[i] = pdf evaluated at it.
+__kernel void probe_env_sample(const uint n, const uint seed, PROBE_SCENE_ARGS, __global float4* out,
+                               __global float* pdf_at) {
+  const size_t i = get_global_id(0);
+  if (i >= n) return;
+  PROBE_SCENE_INIT
+  Rng rng = rng_init(seed, (uint)i, 0u);
+  const float u1 = rng_uniform(&rng), u2 = rng_uniform(&rng);
+  float pdf;
+  const float3 d = pt_env_sample(&s, u1, u2, &pdf);
+  out[i] = (float4)(d, pdf);
+  pdf_at[i] = pt_env_pdf(&s, d);
+}
+
+// Transmittance estimates along ray r (origin rays[2r], direction rays[2r+1], t in [rays[2r].w, rays[2r+1].w])
+// averaged over `samples` runs of ratio tracking (out[r].x) and of delta tracking (out[r].y: fraction with no
+// collision), with their second moments in .z and .w.
+__kernel void probe_transmittance(const uint n, const uint seed, const uint samples, __global const float4* rays,
+                                  PROBE_SCENE_ARGS, __global float4* out) {
+  const size_t r = get_global_id(0);
+  if (r >= n) return;
+  PROBE_SCENE_INIT
+  const float3 o = rays[2 * r].xyz, d = rays[2 * r + 1].xyz;
+  const float t0 = rays[2 * r].w, t1 = rays[2 * r + 1].w;
+  float ratio = 0.0f, ratio2 = 0.0f, delta = 0.0f;
+  for (uint k = 0; k < samples; ++k) {
+    Rng rng = rng_init(seed, (uint)r, k);
+    const float tr = pt_ratio_track(&s, o, d, t0, t1, &rng);
+    ratio += tr;
+    ratio2 += tr * tr;
+    delta += isinf(pt_delta_track(&s, o, d, t0, t1, &rng)) ? 1.0f : 0.0f;
+  }
+  out[r] = (float4)(ratio / samples, delta / samples, ratio2 / samples, delta / samples);
+}

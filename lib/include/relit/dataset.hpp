@@ -1,0 +1,80 @@
+// Dataset generation (DESIGN §5): multi-view renders of a scene under the seed's lighting protocols, written
+// in the NeRF/NeRV-compatible format of docs/dataset-format.md:
+//
+//   out/transforms_{train,val,test}.json   camera_angle_x, w, h, environment, frames [{file_path,
+//                                          preview_path, transform_matrix, light {type, position, intensity}}]
+//   out/{train,val,test}/r_000.exr         linear float RGBA (alpha = 1 - transmittance of the camera ray)
+//   out/{train,val,test}/r_000.png         8-bit sRGB previews, tone-mapped x/(1+x) (the EXR holds the data)
+//   out/scene.json                         the generating scene (resolved); out/environment.exr for 'env+point'
+//   out/transforms_test_distance_{3,5,7,10}.json, ..._intensity_{400,800,1200,1600}.json  (generalisation sets)
+//
+// Protocols: 'point' — a new point light per view, at distance U(3, 5) from the centre (stratified over the
+// training views), intensity fixed or drawn from a range; 'env+point' — a fixed environment map plus the same
+// per-view point light. Cameras lie on a sphere around the centre looking at it: training cameras on a
+// randomly rotated Fibonacci sphere, validation and test cameras (and lights) drawn independently, so they
+// are novel. Writing is atomic: everything goes to a temporary sibling folder that is renamed into place at
+// the very end, so an interrupted run never leaves a dataset that looks complete, and an existing folder is
+// only replaced when `overwrite` is set.
+#pragma once
+
+#include <relit/cl/device.hpp>
+#include <relit/pathtrace.hpp>
+#include <relit/progress.hpp>
+#include <relit/scene/scene.hpp>
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace relit {
+
+struct DatasetSettings {
+  std::string lighting = "point";  ///< "point" or "env+point"
+  std::uint32_t seed = 0;
+  int resolution = 128;            ///< square images
+  std::uint32_t train = 100, val = 20, test = 50;
+  std::uint32_t spp = 64;
+  std::uint32_t max_bounces = 0;   ///< 0 = unlimited
+  float camera_distance = 4.0f;    ///< the scene box [-1, 1]^3 nearly fills the view at the default field of view
+  float camera_angle_x = 0.8f;
+  float light_distance_min = 3.0f, light_distance_max = 5.0f;
+  float intensity_min = 600.0f, intensity_max = 600.0f;  ///< W/sr (white); equal = fixed
+  bool generalization = false;     ///< also write the light-distance and light-intensity test sets
+  std::uint32_t generalization_views = 20;
+  float env_scale = 1.0f;          ///< 'env+point' without an environment in the scene: procedural sky scale
+  bool env_visible = false;        ///< whether camera rays that miss see the environment
+  bool previews = true;            ///< write PNG previews
+  bool overwrite = false;          ///< replace an existing output folder (only once the new one is complete)
+
+  void validate() const;
+};
+
+/// One view of a dataset split.
+struct DatasetFrame {
+  std::string file_path;  ///< relative to the dataset folder ("train/r_000.exr")
+  Camera camera;
+  PointLight light;
+};
+
+struct DatasetDescription {
+  std::map<std::string, std::vector<DatasetFrame>> splits;  ///< "train", "val", "test", "test_distance_3", ...
+  std::string lighting;
+  Json environment;  ///< null, or {file, scale, visible}
+};
+
+/// The views a generation would render (cameras and lights), without rendering anything.
+DatasetDescription plan_dataset(const DatasetSettings& settings);
+
+/// Renders and writes the dataset to `out_dir`. Progress counts path samples over all views.
+/// Throws IOError when `out_dir` exists (and overwrite is off) or cannot be written; Cancelled when the
+/// callback cancels (nothing is left behind).
+void generate_dataset(const Device& device, const Scene& scene, const std::string& out_dir, const DatasetSettings& settings,
+                      const ProgressCallback& progress = {});
+
+/// The path tracer seed of view `index` of `split`: any view can be re-rendered exactly.
+std::uint32_t dataset_view_seed(std::uint32_t seed, const std::string& split, std::size_t index);
+
+/// Reads the transforms files of a dataset folder back (cameras, lights, file paths).
+DatasetDescription read_dataset(const std::string& dir);
+
+}  // namespace relit

@@ -1,0 +1,42 @@
+// Images on the host and on disk, through OpenImageIO. The file extension chooses the format:
+//   .exr (and .hdr, .pfm)  linear float, written as 32-bit float EXR channels R, G, B[, A]
+//   .png (and .jpg)        8-bit, sRGB-encoded from linear values clamped to [0, 1]; alpha stays linear
+// Writes are atomic: the image goes to a temporary file in the same folder which is then renamed, so a
+// reader never sees half a file and an interrupted write leaves the old file intact.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace relit {
+
+/// A linear float image, row-major from the top row, channels interleaved.
+struct Image {
+  int width = 0, height = 0, channels = 0;
+  std::vector<float> pixels;  ///< width * height * channels values
+
+  Image() = default;
+  Image(int w, int h, int c, float value = 0.0f)
+      : width(w), height(h), channels(c), pixels(std::size_t(w) * h * c, value) {}
+  float& at(int x, int y, int c) { return pixels[(std::size_t(y) * width + x) * channels + c]; }
+  float at(int x, int y, int c) const { return pixels[(std::size_t(y) * width + x) * channels + c]; }
+  bool empty() const { return pixels.empty(); }
+};
+
+/// Reads any image OpenImageIO can read as linear float (8-bit sRGB formats are decoded to linear).
+/// Throws IOError naming the file when it is missing, unreadable or corrupt.
+Image read_image(const std::string& path);
+
+/// Writes `image` to `path` (format by extension, see above) atomically. Throws IOError on failure and
+/// InvalidArgument for an empty image or an unsupported extension.
+void write_image(const std::string& path, const Image& image);
+
+/// Writes `text` to `path` atomically (temporary file + rename). Throws IOError on failure.
+void write_text_atomic(const std::string& path, const std::string& text);
+
+/// sRGB transfer function of a linear value clamped to [0, 1].
+float linear_to_srgb(float linear);
+float srgb_to_linear(float encoded);
+
+}  // namespace relit

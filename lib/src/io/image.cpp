@@ -1,0 +1,138 @@
+// Image I/O through OpenImageIO, with atomic writes (temporary file in the target folder + rename).
+#include <relit/error.hpp>
+#include <relit/io/image.hpp>
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
+
+namespace fs = std::filesystem;
+
+namespace relit {
+
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+bool is_float_format(const std::string& ext) { return ext == ".exr" || ext == ".hdr" || ext == ".pfm"; }
+bool is_8bit_format(const std::string& ext) { return ext == ".png" || ext == ".jpg" || ext == ".jpeg"; }
+
+// A sibling of `path` that keeps its extension (OpenImageIO picks the writer by extension) and is unique
+// per process and call, so concurrent writers never share a temporary file.
+fs::path temporary_sibling(const fs::path& path) {
+  static std::atomic<unsigned> counter{0};
+  fs::path tmp = path;
+  tmp.replace_filename("." + path.stem().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
+                       std::to_string(counter++) + path.extension().string());
+  return tmp;
+}
+
+void rename_into_place(const fs::path& tmp, const fs::path& path) {
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw IOError("cannot move the written file into place as '" + path.string() + "': " + ec.message());
+  }
+}
+
+}  // namespace
+
+float linear_to_srgb(float x) {
+  x = std::clamp(std::isfinite(x) ? x : 0.0f, 0.0f, 1.0f);
+  return x <= 0.0031308f ? 12.92f * x : 1.055f * std::pow(x, 1.0f / 2.4f) - 0.055f;
+}
+
+float srgb_to_linear(float x) { return x <= 0.04045f ? x / 12.92f : std::pow((x + 0.055f) / 1.055f, 2.4f); }
+
+Image read_image(const std::string& path) {
+  if (!fs::exists(path)) throw IOError("image file '" + path + "' does not exist");
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) throw IOError("cannot read image '" + path + "': " + OIIO::geterror() + " (is it a valid EXR/HDR/PNG file?)");
+  const OIIO::ImageSpec& spec = in->spec();
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
+    throw IOError("image '" + path + "' has an unsupported shape " + std::to_string(spec.width) + "x" +
+                  std::to_string(spec.height) + "x" + std::to_string(spec.nchannels));
+  Image image(spec.width, spec.height, spec.nchannels);
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
+    throw IOError("cannot read the pixels of image '" + path + "': " + in->geterror() + " (truncated or corrupt file?)");
+  in->close();
+  // Integer formats hold sRGB-encoded colour (PNG, JPEG); relit works in linear radiance.
+  const bool encoded = spec.format.basetype != OIIO::TypeDesc::FLOAT && spec.format.basetype != OIIO::TypeDesc::HALF &&
+                       spec.format.basetype != OIIO::TypeDesc::DOUBLE;
+  if (encoded) {
+    const int colour = std::min(spec.nchannels, spec.alpha_channel >= 0 ? spec.alpha_channel : 3);
+    for (std::size_t p = 0; p < image.pixels.size(); p += spec.nchannels)
+      for (int c = 0; c < colour; ++c) image.pixels[p + c] = srgb_to_linear(image.pixels[p + c]);
+  }
+  for (float v : image.pixels)
+    if (!std::isfinite(v)) throw IOError("image '" + path + "' contains NaN or infinite values");
+  return image;
+}
+
+void write_image(const std::string& path, const Image& image) {
+  if (image.empty() || image.width <= 0 || image.height <= 0 || image.channels <= 0 ||
+      image.pixels.size() != std::size_t(image.width) * image.height * image.channels)
+    throw InvalidArgument("cannot write '" + path + "': the image is empty or its size does not match its pixels");
+  const std::string ext = lower_extension(path);
+  if (!is_float_format(ext) && !is_8bit_format(ext))
+    throw InvalidArgument("cannot write '" + path + "': unsupported extension '" + ext + "' (use .exr for linear float or .png for 8-bit sRGB)");
+  const fs::path target(path);
+  if (target.has_parent_path() && !fs::is_directory(target.parent_path()))
+    throw IOError("cannot write '" + path + "': folder '" + target.parent_path().string() + "' does not exist");
+
+  const fs::path tmp = temporary_sibling(target);
+  auto out = OIIO::ImageOutput::create(tmp.string());
+  if (!out) throw IOError("cannot write '" + path + "': " + OIIO::geterror());
+  const bool eight_bit = is_8bit_format(ext);
+  OIIO::ImageSpec spec(image.width, image.height, image.channels, eight_bit ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
+  if (image.channels == 4) spec.alpha_channel = 3;
+  if (eight_bit) spec.attribute("oiio:ColorSpace", "sRGB");
+  else spec.attribute("compression", "zip");
+
+  std::vector<float> data = image.pixels;
+  if (eight_bit) {
+    const int colour = std::min(image.channels, 3);
+    for (std::size_t p = 0; p < data.size(); p += image.channels) {
+      for (int c = 0; c < colour; ++c) data[p + c] = linear_to_srgb(data[p + c]);
+      for (int c = colour; c < image.channels; ++c) data[p + c] = std::clamp(data[p + c], 0.0f, 1.0f);
+    }
+  }
+  const bool ok = out->open(tmp.string(), spec) && out->write_image(OIIO::TypeDesc::FLOAT, data.data()) && out->close();
+  if (!ok) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw IOError("cannot write '" + path + "': " + out->geterror());
+  }
+  rename_into_place(tmp, target);
+}
+
+void write_text_atomic(const std::string& path, const std::string& text) {
+  const fs::path target(path);
+  const fs::path tmp = temporary_sibling(target);
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    if (!f) throw IOError("cannot write '" + path + "': cannot create '" + tmp.string() + "'");
+    f << text;
+    f.flush();
+    if (!f) {
+      f.close();
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw IOError("cannot write '" + path + "' (disk full?)");
+    }
+  }
+  rename_into_place(tmp, target);
+}
+
+}  // namespace relit

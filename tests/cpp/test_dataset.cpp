@@ -1,0 +1,163 @@
+// Dataset generation: protocol planning, a round trip (cameras, lights, pixels), atomicity and bad input.
+#include "test_support.hpp"
+
+#include <relit/dataset.hpp>
+
+#include <cmath>
+#include <fstream>
+
+namespace relit {
+
+namespace fs = std::filesystem;
+
+namespace {
+DatasetSettings tiny() {
+  DatasetSettings s;
+  s.resolution = 8;
+  s.train = 3;
+  s.val = 1;
+  s.test = 2;
+  s.spp = 2;
+  s.seed = 5;
+  return s;
+}
+Scene tiny_scene() { return Scene::from_json(Scene::builtin_json("cloud", 1, 16)); }
+double norm(const Float3& v) { return std::sqrt(double(v[0]) * v[0] + double(v[1]) * v[1] + double(v[2]) * v[2]); }
+}  // namespace
+
+TEST(Dataset, PlanFollowsTheLightingProtocols) {
+  DatasetSettings s;
+  s.train = 100;
+  s.intensity_min = 50;
+  s.intensity_max = 900;
+  s.generalization = true;
+  const DatasetDescription d = plan_dataset(s);
+  ASSERT_EQ(d.splits.at("train").size(), 100u);
+  ASSERT_EQ(d.splits.at("val").size(), 20u);
+  ASSERT_EQ(d.splits.at("test").size(), 50u);
+  double lo = 1e9, hi = 0;
+  for (const auto& f : d.splits.at("train")) {
+    const double dist = norm(f.light.position);
+    EXPECT_GE(dist, 3.0 - 1e-5);
+    EXPECT_LE(dist, 5.0 + 1e-5);
+    EXPECT_NEAR(norm(f.camera.position()), 4.0, 1e-4);
+    EXPECT_GE(f.light.intensity[0], 50.0f);
+    EXPECT_LE(f.light.intensity[0], 900.0f);
+    lo = std::min(lo, double(f.light.intensity[0])), hi = std::max(hi, double(f.light.intensity[0]));
+    // Every camera looks at the centre.
+    const Float3 c = f.camera.direction(f.camera.width / 2.0, f.camera.height / 2.0), p = f.camera.position();
+    EXPECT_NEAR(c[0] * p[0] + c[1] * p[1] + c[2] * p[2], -norm(p), 1e-3);
+  }
+  EXPECT_LT(lo, 80);  // stratified over the range
+  EXPECT_GT(hi, 870);
+  for (int dist : {3, 5, 7, 10})
+    for (const auto& f : d.splits.at("test_distance_" + std::to_string(dist))) EXPECT_NEAR(norm(f.light.position), dist, 1e-4);
+  for (int inten : {400, 800, 1200, 1600})
+    for (const auto& f : d.splits.at("test_intensity_" + std::to_string(inten))) {
+      EXPECT_EQ(f.light.intensity[1], float(inten));
+      EXPECT_NEAR(norm(f.light.position), 4.0, 1e-4);
+    }
+  // Novel test cameras: none coincides with a training camera.
+  for (const auto& t : d.splits.at("test"))
+    for (const auto& f : d.splits.at("train")) EXPECT_NE(t.camera.transform, f.camera.transform);
+  // Same seed, same plan.
+  EXPECT_EQ(plan_dataset(s).splits.at("val")[3].light.position, d.splits.at("val")[3].light.position);
+}
+
+TEST(Dataset, RoundTripGivesIdenticalCamerasLightsAndPixels) {
+  test::TempDir dir("dataset");
+  const Device dev = test::test_device();
+  const Scene scene = tiny_scene();
+  const DatasetSettings s = tiny();
+  const std::string out = (dir.path() / "ds").string();
+  generate_dataset(dev, scene, out, s);
+  const DatasetDescription plan = plan_dataset(s), back = read_dataset(out);
+  EXPECT_EQ(back.lighting, "point");
+  EXPECT_TRUE(back.environment.is_null());
+  ASSERT_EQ(back.splits.size(), 3u);
+  const PathTracer pt(dev, scene);
+  for (const auto& [name, frames] : plan.splits) {
+    ASSERT_EQ(back.splits.at(name).size(), frames.size()) << name;
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      const DatasetFrame& a = frames[i];
+      const DatasetFrame& b = back.splits.at(name)[i];
+      EXPECT_EQ(a.file_path, b.file_path);
+      EXPECT_EQ(a.camera.transform, b.camera.transform);
+      EXPECT_EQ(a.camera.camera_angle_x, b.camera.camera_angle_x);
+      EXPECT_EQ(a.camera.width, b.camera.width);
+      EXPECT_EQ(a.light.position, b.light.position);
+      EXPECT_EQ(a.light.intensity, b.light.intensity);
+      const Image img = read_image((fs::path(out) / b.file_path).string());
+      ASSERT_EQ(img.channels, 4);
+      EXPECT_TRUE(fs::exists(fs::path(out) / (name + "/r_00" + std::to_string(i) + ".png")));
+      if (i == 0) {  // stored pixels are exactly the render of that view (float EXR: bit exact)
+        RenderSettings rs;
+        rs.spp = s.spp;
+        rs.seed = dataset_view_seed(s.seed, name, i);
+        EXPECT_EQ(img.pixels, pt.render(a.camera, {a.light}, rs).image.pixels) << name;
+      }
+    }
+  }
+  const Image stored = read_image((fs::path(out) / "train/r_000.exr").string());
+  double sum = 0;
+  for (std::size_t p = 0; p < stored.pixels.size(); p += 4) sum += stored.pixels[p];
+  EXPECT_GT(sum, 0.0) << "a lit cloud must not render black";
+  EXPECT_TRUE(fs::exists(fs::path(out) / "scene.json"));
+  const Scene reloaded = Scene::load((fs::path(out) / "scene.json").string());
+  EXPECT_EQ(reloaded.medium->density.values, scene.medium->density.values);
+  // Nothing but the dataset is left in the parent folder (no temporary folders).
+  int entries = 0;
+  for (const auto& e : fs::directory_iterator(dir.path())) entries += 1, (void)e;
+  EXPECT_EQ(entries, 1);
+}
+
+TEST(Dataset, EnvPlusPointWritesTheEnvironmentMap) {
+  test::TempDir dir("dataset");
+  DatasetSettings s = tiny();
+  s.lighting = "env+point";
+  s.train = 1, s.val = 0, s.test = 0;
+  const std::string out = (dir.path() / "ds").string();
+  generate_dataset(test::test_device(), tiny_scene(), out, s);
+  const DatasetDescription back = read_dataset(out);
+  ASSERT_TRUE(back.environment.is_object());
+  EXPECT_EQ(back.environment["file"], "environment.exr");
+  EXPECT_GT(read_image((fs::path(out) / "environment.exr").string()).width, 0);
+  const Scene reloaded = Scene::load((fs::path(out) / "scene.json").string());
+  EXPECT_TRUE(reloaded.environment.has_value());
+}
+
+TEST(Dataset, ExistingFoldersAreNotDamagedAndCancelledRunsLeaveNothing) {
+  test::TempDir dir("dataset");
+  const Device dev = test::test_device();
+  const fs::path out = dir.path() / "ds";
+  fs::create_directories(out);
+  std::ofstream(out / "keep.txt") << "precious";
+  EXPECT_THROW(generate_dataset(dev, tiny_scene(), out.string(), tiny()), IOError);
+  EXPECT_TRUE(fs::exists(out / "keep.txt"));
+
+  const fs::path out2 = dir.path() / "ds2";
+  int calls = 0;
+  EXPECT_THROW(generate_dataset(dev, tiny_scene(), out2.string(), tiny(), [&](const Progress&) { return ++calls < 3; }),
+               Cancelled);
+  EXPECT_FALSE(fs::exists(out2));
+  int entries = 0;
+  for (const auto& e : fs::directory_iterator(dir.path())) entries += 1, (void)e;
+  EXPECT_EQ(entries, 1) << "a cancelled generation must leave no temporary folder";
+
+  // With overwrite, the old folder is replaced only by a complete dataset.
+  DatasetSettings s = tiny();
+  s.overwrite = true;
+  generate_dataset(dev, tiny_scene(), out.string(), s);
+  EXPECT_FALSE(fs::exists(out / "keep.txt"));
+  EXPECT_TRUE(fs::exists(out / "transforms_train.json"));
+
+  DatasetSettings bad = tiny();
+  bad.intensity_min = -1;
+  EXPECT_THROW(generate_dataset(dev, tiny_scene(), (dir.path() / "x").string(), bad), InvalidArgument);
+  bad = tiny();
+  bad.lighting = "sun";
+  EXPECT_THROW(plan_dataset(bad), InvalidArgument);
+  EXPECT_THROW(read_dataset((dir.path() / "nothing").string()), IOError);
+}
+
+}  // namespace relit

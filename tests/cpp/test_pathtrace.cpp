@@ -1,0 +1,478 @@
+// The reference path tracer against known answers: HG and environment sampling (pdf = value, chi-square),
+// transmittance (ratio and delta tracking vs exp(-int sigma)), single scattering vs numerical integration,
+// the white furnace, determinism. Tolerances come from the sample variance (5-6 sigma) plus stated
+// quadrature/float allowances; the seeds are fixed, so the tests are deterministic.
+#include "test_support.hpp"
+
+#include <relit/pathtrace.hpp>
+#include <relit/scene/procedural.hpp>
+
+#include <cmath>
+#include <random>
+
+namespace relit {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+double hg(double cos_owi, double g) {
+  const double d = 1 + g * g + 2 * g * cos_owi;
+  return (1 - g * g) / (4 * kPi * d * std::sqrt(d));
+}
+
+// Writes actual/expected images to a folder that outlives the test, and says where.
+std::string dump_images(const std::string& tag, const Image& actual, const Image& expected) {
+  const auto dir = std::filesystem::temp_directory_path() / ("relit-failed-" + tag);
+  std::filesystem::create_directories(dir);
+  write_image((dir / "actual.exr").string(), actual);
+  write_image((dir / "expected.exr").string(), expected);
+  return " (images written to " + dir.string() + ")";
+}
+
+// Device buffers for the probe kernels' scene arguments.
+struct ProbeScene {
+  Buffer<float> density, majorant, env_pdf, env_marginal, env_conditional;
+  Buffer<cl_float4> env;
+  cl_int4 density_dims{{1, 1, 1, 0}}, majorant_dims{{1, 1, 1, 0}}, env_dims{{1, 1, 0, 0}};
+  float scale = 0;
+
+  ProbeScene(const Device& dev, const Grid* grid, float sigma_scale, const EnvironmentLight* envl) {
+    if (grid) {
+      density = Buffer<float>(dev, grid->values);
+      density_dims = cl_int4{{grid->nx, grid->ny, grid->nz, 1}};
+      const Grid m = majorant_grid(*grid, sigma_scale, std::max(1, grid->nx / 16));
+      majorant = Buffer<float>(dev, m.values);
+      majorant_dims = cl_int4{{m.nx, m.ny, m.nz, 1}};
+      scale = sigma_scale;
+    }
+    if (envl) {
+      std::vector<cl_float4> px(envl->image().pixels.size() / 4);
+      for (std::size_t i = 0; i < px.size(); ++i)
+        for (int c = 0; c < 4; ++c) px[i].s[c] = envl->image().pixels[i * 4 + c];
+      env = Buffer<cl_float4>(dev, px);
+      env_pdf = Buffer<float>(dev, envl->pdf_uv());
+      env_marginal = Buffer<float>(dev, envl->marginal_cdf());
+      env_conditional = Buffer<float>(dev, envl->conditional_cdf());
+      env_dims = cl_int4{{envl->image().width, envl->image().height, 1, 0}};
+    }
+  }
+  template <class... Before>
+  void set(Kernel& k, const Before&... before) {
+    k.args(before..., density, density_dims, scale, majorant, majorant_dims, env, env_pdf, env_marginal,
+           env_conditional, env_dims);
+  }
+};
+
+// Optical depth of scale * grid along o + t d over [t0, t1]: midpoint rule in double.
+double optical_depth(const Grid& g, double scale, const double o[3], const double d[3], double t0, double t1, int steps) {
+  double sum = 0;
+  const double dt = (t1 - t0) / steps;
+  for (int i = 0; i < steps; ++i) {
+    const double t = t0 + (i + 0.5) * dt;
+    sum += g.sample(o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]);
+  }
+  return sum * dt * scale;
+}
+
+bool box_hit(const double o[3], const double d[3], double& t0, double& t1) {
+  t0 = -1e30, t1 = 1e30;
+  for (int a = 0; a < 3; ++a) {
+    const double inv = 1.0 / d[a];
+    double u = (-1 - o[a]) * inv, v = (1 - o[a]) * inv;
+    if (u > v) std::swap(u, v);
+    t0 = std::max(t0, u), t1 = std::min(t1, v);
+  }
+  return t1 > std::max(t0, 0.0);
+}
+
+}  // namespace
+
+TEST(PathTraceSampling, HgSamplesHaveDensityEqualToThePhaseFunction) {
+  const Device dev = test::test_device();
+  Kernel k = dev.kernel("pathtrace_probe.cl", "probe_hg_sample");
+  const cl_uint n = 160000;
+  Buffer<cl_float4> out(dev, n);
+  const double wo[3] = {0.3, -0.5, std::sqrt(1 - 0.34)};
+  for (const double g : {-0.7, 0.0, 0.5, 0.9}) {
+    k.args(n, cl_uint(11), cl_float4{{float(wo[0]), float(wo[1]), float(wo[2]), float(g)}}, out).launch(n, 64);
+    const auto s = out.read();
+    // Frame around the forward direction -wo for the azimuth.
+    const double f[3] = {-wo[0], -wo[1], -wo[2]};
+    double t[3] = {f[1], -f[0], 0};
+    const double tl = std::sqrt(t[0] * t[0] + t[1] * t[1]);
+    for (auto& x : t) x /= tl;
+    const double b[3] = {f[1] * t[2] - f[2] * t[1], f[2] * t[0] - f[0] * t[2], f[0] * t[1] - f[1] * t[0]};
+    const int bm = 20, bp = 8;
+    std::vector<double> count(bm * bp, 0);
+    double mean_cos = 0;
+    for (const auto& v : s) {
+      const double mu = std::clamp(v.s[0] * f[0] + v.s[1] * f[1] + v.s[2] * f[2], -1.0, 1.0);
+      ASSERT_NEAR(v.s[3], hg(-mu, g), 2e-3 * hg(-mu, g) + 1e-6) << "pdf != phase value, g = " << g;
+      mean_cos += mu;
+      // Exact CDF of the HG cosine: bins of equal probability.
+      const double cdf = std::abs(g) < 1e-3 ? (mu + 1) / 2
+                                            : (1 - g * g) / (2 * g) * (1 / std::sqrt(1 + g * g - 2 * g * mu) - 1 / (1 + g));
+      const double phi = std::atan2(v.s[0] * b[0] + v.s[1] * b[1] + v.s[2] * b[2], v.s[0] * t[0] + v.s[1] * t[1] + v.s[2] * t[2]);
+      const int i = std::min(int(cdf * bm), bm - 1), j = std::min(int((phi + kPi) / (2 * kPi) * bp), bp - 1);
+      count[i * bp + j] += 1;
+    }
+    const double expected = double(n) / (bm * bp);
+    double chi2 = 0;
+    for (double c : count) chi2 += (c - expected) * (c - expected) / expected;
+    const double dof = bm * bp - 1;
+    EXPECT_LT(chi2, dof + 6 * std::sqrt(2 * dof)) << "g = " << g;
+    EXPECT_NEAR(mean_cos / n, g, 5 * std::sqrt(1.0 / n)) << "mean cosine must equal g";
+  }
+}
+
+TEST(PathTraceSampling, EnvironmentSamplerPdfIsConsistentAndMatchesTheMap) {
+  const Device dev = test::test_device();
+  const EnvironmentLight env(read_image(std::string(RELIT_TEST_DATA_DIR) + "/env_small.exr"), 1.0f, false);
+  ProbeScene ps(dev, nullptr, 0, &env);
+  Kernel k = dev.kernel("pathtrace_probe.cl", "probe_env_sample");
+  const cl_uint n = 200000;
+  Buffer<cl_float4> out(dev, n);
+  Buffer<float> pdf_at(dev, n);
+  ps.set(k, n, cl_uint(5));
+  k.arg(12, out).arg(13, pdf_at).launch(n, 64);
+  const auto s = out.read();
+  const auto p = pdf_at.read();
+  const int w = env.image().width, h = env.image().height;
+  std::vector<double> count(std::size_t(w) * h, 0);
+  int mismatched = 0;
+  for (cl_uint i = 0; i < n; ++i) {
+    const Float3 d{s[i].s[0], s[i].s[1], s[i].s[2]};
+    const double host = env.pdf(d);
+    if (std::abs(s[i].s[3] - host) > 1e-3 * host || std::abs(p[i] - host) > 1e-3 * host) ++mismatched;
+    double phi = std::atan2(d[1], d[0]);
+    if (phi < 0) phi += 2 * kPi;
+    const int x = std::min(int(phi / (2 * kPi) * w), w - 1), y = std::min(int(std::acos(d[2]) / kPi * h), h - 1);
+    count[std::size_t(y) * w + x] += 1;
+  }
+  EXPECT_LT(mismatched, int(n / 1000)) << "sampled pdf != pdf(direction) (texel-boundary rounding aside)";
+  double chi2 = 0, pooled_c = 0, pooled_e = 0;
+  int bins = 0;
+  for (std::size_t t = 0; t < count.size(); ++t) {
+    const double e = double(n) * env.pdf_uv()[t] / (w * h);
+    if (e < 20) {
+      pooled_c += count[t], pooled_e += e;
+      continue;
+    }
+    chi2 += (count[t] - e) * (count[t] - e) / e;
+    ++bins;
+  }
+  if (pooled_e > 0) chi2 += (pooled_c - pooled_e) * (pooled_c - pooled_e) / pooled_e, ++bins;
+  EXPECT_LT(chi2, bins - 1 + 6 * std::sqrt(2.0 * (bins - 1)));
+}
+
+TEST(PathTraceTransmittance, RatioAndDeltaTrackingMatchExpMinusOpticalDepth) {
+  const Device dev = test::test_device();
+  Kernel k = dev.kernel("pathtrace_probe.cl", "probe_transmittance");
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(-1, 1);
+  struct Case {
+    const char* name;
+    Grid grid;
+    float scale;
+  };
+  std::vector<Case> cases = {{"homogeneous cube", Grid(8, 8, 8, 1, 1.0f), 1.5f}, {"cloud", make_cloud(24, 3).density, 6.0f}};
+  const cl_uint rays = 48, samples = 4000;
+  for (const auto& c : cases) {
+    std::vector<cl_float4> data;
+    std::vector<double> expected;
+    for (cl_uint r = 0; r < rays; ++r) {
+      // Rays from outside the box toward a random point inside it.
+      double o[3] = {u(rng) * 3, u(rng) * 3, 2.5}, target[3] = {u(rng) * 0.5, u(rng) * 0.5, u(rng) * 0.5}, d[3];
+      double len = 0;
+      for (int a = 0; a < 3; ++a) d[a] = target[a] - o[a], len += d[a] * d[a];
+      for (auto& x : d) x /= std::sqrt(len);
+      double t0, t1;
+      ASSERT_TRUE(box_hit(o, d, t0, t1));
+      expected.push_back(std::exp(-optical_depth(c.grid, c.scale, o, d, t0, t1, 4000)));
+      data.push_back(cl_float4{{float(o[0]), float(o[1]), float(o[2]), float(t0)}});
+      data.push_back(cl_float4{{float(d[0]), float(d[1]), float(d[2]), float(t1)}});
+    }
+    Buffer<cl_float4> ray_buf(dev, data), out(dev, rays);
+    ProbeScene ps(dev, &c.grid, c.scale, nullptr);
+    ps.set(k, rays, cl_uint(9), samples, ray_buf);
+    k.arg(14, out).launch(rays, 8);
+    const auto res = out.read();
+    for (cl_uint r = 0; r < rays; ++r) {
+      const double T = expected[r];
+      const double ratio_sd = std::sqrt(std::max(double(res[r].s[2]) - double(res[r].s[0]) * res[r].s[0], 1e-8) / samples);
+      const double delta_sd = std::sqrt(std::max(T * (1 - T), 1e-8) / samples);
+      EXPECT_NEAR(res[r].s[0], T, 5 * ratio_sd + 1e-3) << c.name << " ray " << r << ": ratio tracking";
+      EXPECT_NEAR(res[r].s[1], T, 5 * delta_sd + 1e-3) << c.name << " ray " << r << ": delta tracking";
+      EXPECT_NEAR(res[r].s[0], res[r].s[1], 5 * (ratio_sd + delta_sd) + 1e-3) << c.name << ": estimators disagree";
+    }
+  }
+  // Straight through the homogeneous cube along x: exactly exp(-sigma * 2).
+  EXPECT_NEAR(std::exp(-optical_depth(cases[0].grid, 1.5, std::array<double, 3>{-3, 0.1, 0.2}.data(),
+                                      std::array<double, 3>{1, 0, 0}.data(), 2, 4, 100)),
+              std::exp(-3.0), 1e-12);
+}
+
+TEST(PathTraceRender, WhiteFurnaceRendersTheEnvironmentRadianceEverywhere) {
+  const Device dev = test::test_device();
+  Json j = {{"medium", {{"source", {{"type", "cloud"}, {"resolution", 24}, {"seed", 2}}}, {"density_scale", 8.0},
+                        {"albedo", 1.0}, {"g", 0.5}}},
+            {"environment", {{"radiance", {0.7, 0.7, 0.7}}, {"visible", true}}},
+            {"cameras", {{{"position", {0.3, -3.0, 0.4}}, {"camera_angle_x", 0.45}, {"width", 12}, {"height", 12}}}}};
+  const Scene scene = Scene::from_json(j);
+  RenderSettings rs;
+  rs.spp = 64;
+  rs.seed = 3;
+  const RenderResult r = PathTracer(dev, scene).render(scene.cameras[0], {}, rs);
+  double sum = 0, var_sum = 0;
+  int hit = 0;
+  for (int p = 0; p < 144; ++p) {
+    const double mean = r.image.pixels[p * 4], sd = std::sqrt(r.variance.pixels[p * 4] / rs.spp);
+    EXPECT_NEAR(mean, 0.7, 6 * sd + 2e-4) << "pixel " << p << dump_images("furnace", r.image, Image(12, 12, 4, 0.7f));
+    sum += mean, var_sum += r.variance.pixels[p * 4] / rs.spp;
+    hit += r.image.pixels[p * 4 + 3] > 0;
+  }
+  EXPECT_NEAR(sum / 144, 0.7, 5 * std::sqrt(var_sum) / 144 + 1e-4);
+  EXPECT_GT(hit, 40) << "the medium must cover a good part of the image for the test to mean anything";
+}
+
+TEST(PathTraceRender, SingleScatteringMatchesNumericalIntegration) {
+  const Device dev = test::test_device();
+  const float sigma = 1.2f;
+  const Float3 albedo{0.9f, 0.6f, 0.3f};
+  const float g = 0.4f;
+  Json j = {{"medium", {{"source", {{"type", "sphere"}, {"resolution", 32}, {"radius", 0.7}}}, {"density_scale", sigma},
+                        {"albedo", albedo}, {"g", g}}},
+            {"lights", {{{"position", {1.5, -2.0, 2.5}}, {"intensity", {40, 40, 40}}}}},
+            {"cameras", {{{"position", {0.0, -4.0, 0.3}}, {"camera_angle_x", 0.55}, {"width", 8}, {"height", 8}}}}};
+  const Scene scene = Scene::from_json(j);
+  const Grid& grid = scene.medium->density;
+  const Camera& cam = scene.cameras[0];
+  const PointLight& light = scene.lights[0];
+  RenderSettings rs;
+  rs.spp = 1024;
+  rs.max_bounces = 1;
+  rs.seed = 8;
+  const RenderResult r = PathTracer(dev, scene).render(cam, scene.lights, rs);
+
+  Image expected(8, 8, 4);
+  const int sub = 5, steps = 200;
+  const Float3 eye = cam.position();
+  for (int py = 0; py < 8; ++py)
+    for (int px = 0; px < 8; ++px) {
+      double acc = 0, alpha = 0;
+      for (int sy = 0; sy < sub; ++sy)
+        for (int sx = 0; sx < sub; ++sx) {
+          const Float3 df = cam.direction(px + (sx + 0.5) / sub, py + (sy + 0.5) / sub);
+          const double o[3] = {eye[0], eye[1], eye[2]}, d[3] = {df[0], df[1], df[2]};
+          double t0, t1;
+          if (!box_hit(o, d, t0, t1)) continue;
+          t0 = std::max(t0, 0.0);
+          const double dt = (t1 - t0) / steps;
+          double tau = 0;  // optical depth from the camera to the current step
+          for (int i = 0; i < steps; ++i) {
+            const double t = t0 + (i + 0.5) * dt;
+            const double x[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+            const double s = sigma * grid.sample(x[0], x[1], x[2]);
+            const double tau_mid = tau + 0.5 * s * dt;
+            tau += s * dt;
+            if (s <= 0) continue;
+            double wl[3] = {light.position[0] - x[0], light.position[1] - x[1], light.position[2] - x[2]};
+            const double dist = std::sqrt(wl[0] * wl[0] + wl[1] * wl[1] + wl[2] * wl[2]);
+            for (auto& c : wl) c /= dist;
+            double l0, l1;
+            box_hit(x, wl, l0, l1);
+            const double tau_l = optical_depth(grid, sigma, x, wl, 0.0, std::min(l1, dist), 100);
+            const double cos_owi = -(d[0] * wl[0] + d[1] * wl[1] + d[2] * wl[2]);
+            acc += std::exp(-tau_mid) * s * hg(cos_owi, g) * std::exp(-tau_l) * light.intensity[0] / (dist * dist) * dt;
+          }
+          alpha += 1 - std::exp(-tau);
+        }
+      for (int c = 0; c < 3; ++c) expected.at(px, py, c) = float(acc * albedo[c] / (sub * sub));
+      expected.at(px, py, 3) = float(alpha / (sub * sub));
+    }
+  double total = 0;
+  for (int p = 0; p < 64; ++p)
+    for (int c = 0; c < 4; ++c) {
+      const double e = expected.pixels[p * 4 + c], a = r.image.pixels[p * 4 + c];
+      const double sd = std::sqrt(r.variance.pixels[p * 4 + c] / rs.spp);
+      EXPECT_NEAR(a, e, 5 * sd + 0.01 * e + 1e-4) << "pixel " << p << " channel " << c << dump_images("single-scatter", r.image, expected);
+      if (c == 0) total += e;
+    }
+  EXPECT_GT(total, 0.5) << "the reference image must not be black";
+}
+
+TEST(PathTraceRender, SameSeedSameImageWhateverTheTilingOtherSeedsDiffer) {
+  const auto devices = test::devices_under_test();
+  Json j = Scene::builtin_json("blobs", 1, 24);
+  j["lights"] = {{{"position", {2, -3, 2}}, {"intensity", 300}}};
+  j["environment"] = {{"sky", 3}, {"visible", true}};
+  j["cameras"] = {{{"position", {0, -4.5, 1}}, {"width", 10}, {"height", 8}}};
+  const Scene scene = Scene::from_json(j);
+  RenderSettings rs;
+  rs.spp = 16;
+  rs.seed = 42;
+  const PathTracer pt(devices.front(), scene);
+  const RenderResult a = pt.render(scene.cameras[0], scene.lights, rs);
+  RenderSettings tiled = rs;
+  tiled.samples_per_launch = 37;  // many small launches, passes of 1 sample
+  EXPECT_EQ(pt.render(scene.cameras[0], scene.lights, tiled).image.pixels, a.image.pixels);
+  RenderSettings other = rs;
+  other.seed = 43;
+  EXPECT_NE(pt.render(scene.cameras[0], scene.lights, other).image.pixels, a.image.pixels);
+  // Other devices: the same image within Monte Carlo tolerance (streams are identical; floats may differ).
+  for (std::size_t i = 1; i < devices.size(); ++i) {
+    const RenderResult b = PathTracer(devices[i], scene).render(scene.cameras[0], scene.lights, rs);
+    for (std::size_t p = 0; p < a.image.pixels.size(); ++p)
+      EXPECT_NEAR(b.image.pixels[p], a.image.pixels[p], 6 * std::sqrt(2 * a.variance.pixels[p] / rs.spp) + 1e-3)
+          << devices[i].info().name;
+  }
+}
+
+TEST(PathTraceRender, ProgressIsReportedAndCancellationStops) {
+  const Device dev = test::test_device();
+  Json j = Scene::builtin_json("cloud", 0, 16);
+  j["lights"] = {{{"position", {0, -3, 3}}, {"intensity", 100}}};
+  j["cameras"] = {{{"width", 16}, {"height", 16}}};
+  const Scene scene = Scene::from_json(j);
+  RenderSettings rs;
+  rs.spp = 8;
+  rs.samples_per_launch = 256;
+  std::vector<Progress> seen;
+  PathTracer pt(dev, scene);
+  pt.render(scene.cameras[0], scene.lights, rs, [&](const Progress& p) { seen.push_back(p); return true; });
+  ASSERT_EQ(seen.size(), 8u);
+  EXPECT_EQ(seen.back().done, 16u * 16u * 8u);
+  EXPECT_EQ(seen.back().total, 16u * 16u * 8u);
+  int calls = 0;
+  EXPECT_THROW(pt.render(scene.cameras[0], scene.lights, rs, [&](const Progress&) { return ++calls < 2; }), Cancelled);
+  EXPECT_EQ(calls, 2);
+  rs.spp = 0;
+  EXPECT_THROW(pt.render(scene.cameras[0], scene.lights, rs), InvalidArgument);
+}
+
+}  // namespace relit
+
+namespace relit {
+
+namespace {
+
+// Double reference of the GGX + Lambert BRDF (DESIGN §4.4) with n = +z.
+double brdf_ref(const double wo[3], const double wi[3], double base, double r) {
+  if (wo[2] <= 0 || wi[2] <= 0) return 0;
+  double h[3] = {wo[0] + wi[0], wo[1] + wi[1], wo[2] + wi[2]};
+  const double hl = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+  for (auto& x : h) x /= hl;
+  const double nh = h[2], vh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2];
+  const double a2 = std::pow(r * r, 2), dd = nh * nh * (a2 - 1) + 1;
+  const double D = a2 / (kPi * dd * dd);
+  const double k = (r + 1) * (r + 1) / 8;
+  const double G = wi[2] / (wi[2] * (1 - k) + k) * wo[2] / (wo[2] * (1 - k) + k);
+  const double F = 0.04 + 0.96 * std::pow(2.0, (-5.55473 * vh - 6.98316) * vh);
+  return base / kPi + D * F * G / (4 * wi[2] * wo[2]);
+}
+
+}  // namespace
+
+TEST(PathTraceSampling, BrdfMatchesReferenceAndItsSamplerIsUnbiased) {
+  const Device dev = test::test_device();
+  Kernel k = dev.kernel("pathtrace_probe.cl", "probe_brdf_sample");
+  const cl_uint n = 200000;
+  Buffer<cl_float4> out(dev, n), out_f(dev, n);
+  const double wo[3] = {0.5, 0.2, std::sqrt(1 - 0.29)};
+  for (const double r : {0.2, 0.5, 0.9}) {
+    const double base = 0.6;
+    k.args(n, cl_uint(21), cl_float4{{float(wo[0]), float(wo[1]), float(wo[2]), float(r)}},
+           cl_float4{{float(base), float(base), float(base), 0}}, out, out_f)
+        .launch(n, 64);
+    const auto s = out.read(), f = out_f.read();
+    // Estimators of int f cos and of the hemisphere's area (2 pi) from the sampler's own pdf.
+    double est = 0, est2 = 0, area = 0, area2 = 0;
+    int checked = 0;
+    for (cl_uint i = 0; i < n; ++i) {
+      const double wi[3] = {s[i].s[0], s[i].s[1], s[i].s[2]};
+      const double pdf = s[i].s[3];
+      if (wi[2] <= 0 || pdf <= 0) continue;  // below the surface: contributes 0
+      const double ref = brdf_ref(wo, wi, base, r) * wi[2];
+      if (checked++ < 2000) ASSERT_NEAR(f[i].s[0], ref, 2e-3 * ref + 1e-6) << "BRDF value, r = " << r;
+      est += ref / pdf, est2 += (ref / pdf) * (ref / pdf);
+      area += 1 / pdf, area2 += 1 / (pdf * pdf);
+    }
+    // Host quadrature of int f cos over the hemisphere.
+    double integral = 0;
+    const int nt = 800, np = 800;
+    for (int a = 0; a < nt; ++a)
+      for (int b = 0; b < np; ++b) {
+        const double th = (a + 0.5) / nt * kPi / 2, ph = (b + 0.5) / np * 2 * kPi;
+        const double wi[3] = {std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th)};
+        integral += brdf_ref(wo, wi, base, r) * wi[2] * std::sin(th) * (kPi / 2 / nt) * (2 * kPi / np);
+      }
+    const double mean = est / n, sd = std::sqrt(std::max(est2 / n - mean * mean, 0.0) / n);
+    EXPECT_NEAR(mean, integral, 5 * sd + 2e-3 * integral) << "E[f cos / pdf] != int f cos, r = " << r;
+    const double am = area / n, asd = std::sqrt(std::max(area2 / n - am * am, 0.0) / n);
+    EXPECT_NEAR(am, 2 * kPi, 5 * asd + 1e-3) << "the sampler's pdf must be its density, r = " << r;
+  }
+}
+
+TEST(PathTraceRender, SolidSphereUnderAPointLightMatchesTheAnalyticShading) {
+  const Device dev = test::test_device();
+  const double radius = 0.6, base = 0.7, rough = 0.5, inten = 20;
+  Json j = {{"solid", {{"source", {{"type", "sphere"}, {"resolution", 64}, {"radius", radius}}},
+                       {"base_color", base}, {"roughness", rough}}},
+            {"lights", {{{"position", {2.0, -2.0, 3.0}}, {"intensity", inten}}}},
+            {"cameras", {{{"position", {0, -4, 0}}, {"camera_angle_x", 0.18}, {"width", 8}, {"height", 8}}}}};
+  const Scene scene = Scene::from_json(j);
+  RenderSettings rs;
+  rs.spp = 256;
+  rs.seed = 2;
+  const RenderResult r = PathTracer(dev, scene).render(scene.cameras[0], scene.lights, rs);
+  const Camera& cam = scene.cameras[0];
+  const Float3 eye = cam.position();
+  const double lp[3] = {2, -2, 3};
+  Image expected(8, 8, 4);
+  const int sub = 6;
+  for (int py = 0; py < 8; ++py)
+    for (int px = 0; px < 8; ++px) {
+      double acc = 0;
+      for (int sy = 0; sy < sub; ++sy)
+        for (int sx = 0; sx < sub; ++sx) {
+          const Float3 df = cam.direction(px + (sx + 0.5) / sub, py + (sy + 0.5) / sub);
+          const double o[3] = {eye[0], eye[1], eye[2]}, d[3] = {df[0], df[1], df[2]};
+          const double b = o[0] * d[0] + o[1] * d[1] + o[2] * d[2];
+          const double c = o[0] * o[0] + o[1] * o[1] + o[2] * o[2] - radius * radius;
+          ASSERT_GT(b * b - c, 0) << "every pixel must see the sphere";
+          const double t = -b - std::sqrt(b * b - c);
+          const double x[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+          const double nrm[3] = {x[0] / radius, x[1] / radius, x[2] / radius};
+          double l[3] = {lp[0] - x[0], lp[1] - x[1], lp[2] - x[2]};
+          const double dist = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+          for (auto& v : l) v /= dist;
+          // Shade in a frame where n = +z.
+          double t1[3] = {nrm[1], -nrm[0], 0};
+          double tl = std::sqrt(t1[0] * t1[0] + t1[1] * t1[1]);
+          if (tl < 1e-9) t1[0] = 1, t1[1] = 0, tl = 1;
+          for (auto& v : t1) v /= tl;
+          const double t2[3] = {nrm[1] * t1[2] - nrm[2] * t1[1], nrm[2] * t1[0] - nrm[0] * t1[2], nrm[0] * t1[1] - nrm[1] * t1[0]};
+          auto local = [&](const double v[3], double out[3]) {
+            out[0] = v[0] * t1[0] + v[1] * t1[1] + v[2] * t1[2];
+            out[1] = v[0] * t2[0] + v[1] * t2[1] + v[2] * t2[2];
+            out[2] = v[0] * nrm[0] + v[1] * nrm[1] + v[2] * nrm[2];
+          };
+          const double wov[3] = {-d[0], -d[1], -d[2]};
+          double wo_l[3], wi_l[3];
+          local(wov, wo_l);
+          local(l, wi_l);
+          if (wi_l[2] > 0) acc += brdf_ref(wo_l, wi_l, base, rough) * wi_l[2] * inten / (dist * dist);
+        }
+      for (int ch = 0; ch < 3; ++ch) expected.at(px, py, ch) = float(acc / (sub * sub));
+      expected.at(px, py, 3) = 1.0f;
+    }
+  for (int p = 0; p < 64; ++p)
+    for (int ch = 0; ch < 4; ch += 3) {
+      const double e = expected.pixels[p * 4 + ch], a = r.image.pixels[p * 4 + ch];
+      const double sd = std::sqrt(r.variance.pixels[p * 4 + ch] / rs.spp);
+      EXPECT_NEAR(a, e, 5 * sd + 0.03 * e + 1e-3) << "pixel " << p << " channel " << ch << dump_images("solid", r.image, expected);
+    }
+}
+
+}  // namespace relit
