@@ -57,7 +57,7 @@ class FrequencyEncoding final : public Encoding {
     bool include_input = false;
   };
   /// Octaves between exact re-evaluations of the double-angle recurrence (see kernels/enc_frequency.cl).
-  static constexpr std::uint32_t kAnchorInterval = 4;
+  static constexpr std::uint32_t kAnchorInterval = 3;
 
   FrequencyEncoding(std::uint32_t n_input_dims, Options options);
 
