@@ -17,6 +17,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <iostream>
 #include <random>
@@ -87,19 +88,30 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Median seconds of `reps` runs of f() + device.finish().
+double process_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+// Median wall seconds of `reps` runs of f() + device.finish(); `cpu` gets the median process CPU time (all
+// driver threads), which time-sharing with other processes inflates far less than wall time.
 template <class F>
-double median_time(const Device& device, std::uint32_t reps, F f) {
+double median_time(const Device& device, std::uint32_t reps, F f, double* cpu = nullptr) {
   f();
   device.finish();  // warm (first launch compiles the work-group function)
-  std::vector<double> t;
+  std::vector<double> t, c;
   for (std::uint32_t i = 0; i < reps; ++i) {
     const auto t0 = std::chrono::steady_clock::now();
+    const double c0 = process_cpu_seconds();
     f();
     device.finish();
     t.push_back(seconds_since(t0));
+    c.push_back(process_cpu_seconds() - c0);
   }
   std::sort(t.begin(), t.end());
+  std::sort(c.begin(), c.end());
+  if (cpu) *cpu = c[c.size() / 2];
   return t[t.size() / 2];
 }
 
@@ -152,14 +164,15 @@ bool bench_hash_grid(const Device& device, const Args& a, Json& report) {
   ok &= check(gerr <= 1e-4, "HashGrid parameter gradient (relative)", gerr, report);
   if (!ok || a.smoke) return ok;
 
-  const double fwd = median_time(device, a.reps, [&] { enc.forward(device, {&params, 0}, in, out, 0, nullptr); });
+  double fwd_cpu = 0, bwd_cpu = 0, both_cpu = 0;
+  const double fwd = median_time(device, a.reps, [&] { enc.forward(device, {&params, 0}, in, out, 0, nullptr); }, &fwd_cpu);
   const double bwd = median_time(device, a.reps, [&] {
     enc.backward(device, {&params, 0}, in, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
-  });
+  }, &bwd_cpu);
   const double both = median_time(device, a.reps, [&] {
     enc.forward(device, {&params, 0}, in, out, 0, nullptr);
     enc.backward(device, {&params, 0}, in, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
-  });
+  }, &both_cpu);
   // Same grid, samples in random order over the cube (no ray coherence), for comparison.
   std::vector<float> shuffled = xs;
   for (float& v : shuffled) v = (u(rng) + 1) / 2;
@@ -178,7 +191,10 @@ bool bench_hash_grid(const Device& device, const Args& a, Json& report) {
                          {"forward_backward_uniform_random_samples_per_s", a.batch / both_random},
                          {"forward_ms", fwd * 1e3},
                          {"backward_ms", bwd * 1e3},
-                         {"forward_backward_ms", both * 1e3}};
+                         {"forward_backward_ms", both * 1e3},
+                         {"forward_cpu_ms", fwd_cpu * 1e3},
+                         {"backward_cpu_ms", bwd_cpu * 1e3},
+                         {"forward_backward_cpu_ms", both_cpu * 1e3}};
   return ok;
 }
 

@@ -10,6 +10,8 @@
 // absolute error, so every ANCHOR octaves the recurrence restarts from an exact evaluation: sinpi/cospi of
 // 2^k x reduced modulo 2 (2^k x and the reduction are exact in float, so the anchor is accurate to an ulp
 // even at high octaves, unlike sin(2^k * pi * x) whose argument already carries a rounding of 2^k*pi*|x|*eps).
+// Measured worst absolute error against double over x in [-1, 1] (PoCL, 230k values): re-anchoring every
+// 1 octave 1.1e-7, 2: 3.1e-7, 3: 6.7e-7, 4: 2.1e-6, 6 or more: above 1e-5. ANCHOR = 3 is the default.
 #include "enc_common.clh"
 
 #ifndef N_FREQ
@@ -19,7 +21,7 @@
 #define INCLUDE_INPUT 0
 #endif
 #ifndef ANCHOR
-#define ANCHOR 4
+#define ANCHOR 3
 #endif
 
 // sin(pi * y), cos(pi * y) for y = x * 2^k, with exact reduction of y to [-1, 1].

@@ -59,6 +59,7 @@ __constant uint grid_prime[3] = {1u, 2654435761u, 805459861u};
 // Cell and in-cell position of 16 samples at `level`.
 inline void grid_cell(const float16* x, uint level, uint16* cell, float16* frac) {
   const float scale = level_scale[level];
+  #pragma unroll
   for (int d = 0; d < DIMS; ++d) {
     const float16 p = fma(fmin(fmax(x[d], 0.0f), 1.0f), (float16)scale, (float16)0.5f);
     const float16 f = floor(p);
@@ -71,10 +72,12 @@ inline void grid_cell(const float16* x, uint level, uint16* cell, float16* frac)
 inline uint16 grid_index(const uint16* cell, uint level, int c) {
   uint16 index = (uint16)0u;
   if (level_hashed[level]) {
+    #pragma unroll
     for (int d = 0; d < DIMS; ++d) index ^= (cell[d] + (uint)((c >> d) & 1)) * grid_prime[d];
     index &= (uint16)(level_size[level] - 1u);
   } else {
     uint stride = 1u;
+    #pragma unroll
     for (int d = 0; d < DIMS; ++d) {
       index += (cell[d] + (uint)((c >> d) & 1)) * stride;
       stride *= level_res[level];
@@ -85,11 +88,24 @@ inline uint16 grid_index(const uint16* cell, uint level, int c) {
 
 inline float16 grid_weight(const float16* frac, int c) {
   float16 w = (float16)1.0f;
+  #pragma unroll
   for (int d = 0; d < DIMS; ++d) w *= ((c >> d) & 1) ? frac[d] : 1.0f - frac[d];
   return w;
 }
 
+// Feature f of the entries of 16 samples, assembled in registers. (Scalar stores to a private array read
+// back with vload16 would be simpler, but a wide load of narrow stores defeats store-to-load forwarding on
+// x86 and stalls: that alone made the forward pass several times slower on PoCL.)
+inline float16 gather16(__global const float* table, uint16 i, int f) {
+  __global const float* p = table + f;
+  return (float16)(p[i.s0 * FEATS], p[i.s1 * FEATS], p[i.s2 * FEATS], p[i.s3 * FEATS], p[i.s4 * FEATS],
+                   p[i.s5 * FEATS], p[i.s6 * FEATS], p[i.s7 * FEATS], p[i.s8 * FEATS], p[i.s9 * FEATS],
+                   p[i.sa * FEATS], p[i.sb * FEATS], p[i.sc * FEATS], p[i.sd * FEATS], p[i.se * FEATS],
+                   p[i.sf * FEATS]);
+}
+
 inline void load_inputs(__global const float* in, size_t t, uint in_cols, uint in_col, float16* x) {
+  #pragma unroll
   for (int d = 0; d < DIMS; ++d) x[d] = enc_load(in, t, in_cols, in_col + d);
 }
 
@@ -108,20 +124,16 @@ __kernel void hashgrid_forward(const uint n_tiles, __global const float* restric
   grid_cell(x, level, cell, frac);
 
   float16 acc[FEATS];
+  #pragma unroll
   for (int f = 0; f < FEATS; ++f) acc[f] = (float16)0.0f;
-#pragma unroll
+  #pragma unroll
   for (int c = 0; c < N_CORNERS; ++c) {
-    uint ids[ENC_TILE];
-    float vals[FEATS][ENC_TILE];
-    vstore16(grid_index(cell, level, c), 0, ids);
-#pragma unroll
-    for (int s = 0; s < ENC_TILE; ++s) {
-      __global const float* entry = table + (size_t)ids[s] * FEATS;
-      for (int f = 0; f < FEATS; ++f) vals[f][s] = entry[f];
-    }
+    const uint16 ids = grid_index(cell, level, c);
     const float16 w = grid_weight(frac, c);
-    for (int f = 0; f < FEATS; ++f) acc[f] = fma(w, vload16(0, vals[f]), acc[f]);
+    #pragma unroll
+    for (int f = 0; f < FEATS; ++f) acc[f] = fma(w, gather16(table, ids, f), acc[f]);
   }
+  #pragma unroll
   for (int f = 0; f < FEATS; ++f) enc_store(out, t, out_cols, out_col + level * FEATS + f, acc[f]);
 }
 
@@ -146,18 +158,22 @@ __kernel void hashgrid_backward_params(const uint n_tiles, const uint n, __globa
     load_inputs(in, t, in_cols, in_col, x);
     grid_cell(x, level, cell, frac);
     const int16 valid = (int16)((int)t * ENC_TILE) + lane < (int16)((int)n);
+    #pragma unroll
     for (int f = 0; f < FEATS; ++f)
       g[f] = select((float16)0.0f, enc_load(d_out, t, out_cols, out_col + level * FEATS + f), valid);
+    #pragma unroll
     for (int c = 0; c < N_CORNERS; ++c) {
       uint ids[ENC_TILE];
       float wg[FEATS][ENC_TILE];
       vstore16(grid_index(cell, level, c), 0, ids);
       const float16 w = grid_weight(frac, c);
+      #pragma unroll
       for (int f = 0; f < FEATS; ++f) vstore16(w * g[f], 0, wg[f]);
       for (int s = 0; s < ENC_TILE; ++s) {
         const uint id = ids[s];
         if (N_RANGES > 1 && (id < lo || id >= hi)) continue;
         __global float* entry = table + (size_t)id * FEATS;
+        #pragma unroll
         for (int f = 0; f < FEATS; ++f) entry[f] += wg[f][s];
       }
     }
@@ -173,31 +189,32 @@ __kernel void hashgrid_backward_input(const uint n_tiles, __global const float* 
   if (t >= n_tiles) return;
   float16 x[DIMS], gx[DIMS];
   load_inputs(in, t, in_cols, in_col, x);
+  #pragma unroll
   for (int d = 0; d < DIMS; ++d) gx[d] = (float16)0.0f;
   for (uint level = 0; level < N_LEVELS; ++level) {
     __global const float* table = params + param_offset + level_offset[level];
     float16 frac[DIMS], g[FEATS];
     uint16 cell[DIMS];
     grid_cell(x, level, cell, frac);
+    #pragma unroll
     for (int f = 0; f < FEATS; ++f) g[f] = enc_load(d_out, t, out_cols, out_col + level * FEATS + f);
+    #pragma unroll
     for (int c = 0; c < N_CORNERS; ++c) {
-      uint ids[ENC_TILE];
-      float vals[FEATS][ENC_TILE];
-      vstore16(grid_index(cell, level, c), 0, ids);
-      for (int s = 0; s < ENC_TILE; ++s) {
-        __global const float* entry = table + (size_t)ids[s] * FEATS;
-        for (int f = 0; f < FEATS; ++f) vals[f][s] = entry[f];
-      }
+      const uint16 ids = grid_index(cell, level, c);
       float16 gv = (float16)0.0f;  // dL/dw_c
-      for (int f = 0; f < FEATS; ++f) gv = fma(g[f], vload16(0, vals[f]), gv);
+      #pragma unroll
+      for (int f = 0; f < FEATS; ++f) gv = fma(g[f], gather16(table, ids, f), gv);
+      #pragma unroll
       for (int d = 0; d < DIMS; ++d) {
         float16 dw = ((c >> d) & 1) ? (float16)1.0f : (float16)-1.0f;  // d w_c / d frac_d
+        #pragma unroll
         for (int e = 0; e < DIMS; ++e)
           if (e != d) dw *= ((c >> e) & 1) ? frac[e] : 1.0f - frac[e];
         gx[d] = fma((float16)level_scale[level] * dw, gv, gx[d]);
       }
     }
   }
+  #pragma unroll
   for (int d = 0; d < DIMS; ++d) {
     const int16 inside = x[d] > 0.0f && x[d] < 1.0f;
     enc_store(d_in, t, d_in_cols, in_col + d, select((float16)0.0f, gx[d], inside));

@@ -213,6 +213,27 @@ TEST(EncHashGrid, ParamGradientMatchesReferenceInAnyOrderAndIsDeterministic) {
   }
 }
 
+// The ownership scheme's claim: any number of table ranges per level (the GPU path uses many) gives the
+// very same bits as one.
+TEST(EncHashGrid, ParamGradientIsBitIdenticalForAnyNumberOfRanges) {
+  const Device device = test::test_device();
+  const Matrix x = grid_inputs(700, 3, 21);
+  std::vector<float> first;
+  for (std::uint32_t ranges : {1u, 7u}) {
+    Json cfg = kGrid3;
+    cfg["gradient_ranges"] = ranges;
+    auto enc = make_grid(cfg, 3);
+    ASSERT_EQ(enc->gradient_ranges(device), ranges);
+    const Buffer<float> p(device, init_params(*enc, 1.0f, 3));
+    const Matrix w = test::random_matrix(700, enc->n_output_dims(), -1, 1, 22);
+    Buffer<float> g(device, enc->n_params());
+    enc->backward(device, {&p, 0}, test::to_device(device, x), test::to_device(device, w), 0, {&g, 0}, false, nullptr,
+                  nullptr);
+    if (first.empty()) first = g.read();
+    else EXPECT_EQ(g.read(), first) << ranges << " ranges";
+  }
+}
+
 // The output is linear in the parameters, so a central difference of the device's own forward pass with a
 // large step is exact up to float rounding: this checks the backward kernel against the forward kernel.
 TEST(EncHashGrid, ParamGradientMatchesFiniteDifferencesOfTheForwardKernel) {

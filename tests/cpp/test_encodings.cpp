@@ -148,8 +148,8 @@ TEST(EncIdentity, ForwardAndGradient) {
 // --- Frequency -------------------------------------------------------------------------------------------
 
 // Tolerance: values lie in [-1, 1]; the double-angle recurrence restarts from sinpi/cospi (exact argument
-// reduction) every 4 octaves, so at most 3 doublings amplify the anchor's ~1 ulp error: 1e-5 absolute holds
-// at every octave (measured worst: see docs/encodings.md), where a float sin(2^k pi x) would already be off
+// reduction) every 3 octaves, so at most 2 doublings amplify the anchor's ~1 ulp error: 1e-5 absolute holds
+// at every octave (measured worst 6.7e-7, see docs/encodings.md), where a float sin(2^k pi x) would already be off
 // by 2^k * pi * |x| * 6e-8 ~ 1e-4 at k = 9.
 TEST(EncFrequency, MatchesDoubleReferenceAtEveryOctave) {
   const Device device = test::test_device();

@@ -41,6 +41,9 @@ std::unique_ptr<Encoding> make_hash_grid(config::Reader& r, std::uint32_t n_dims
   o.base_resolution = r.uint("base_resolution", 16, 2, 1u << 20, "cells per axis of the coarsest level");
   o.per_level_scale = r.number("per_level_scale", 2.0f, 1.0f, 8.0f,
                                "growth factor of the resolution from one level to the next");
+  o.gradient_ranges = r.uint("gradient_ranges", 0, 0, 4096,
+                             "table ranges per level in the gradient pass, for parallelism (0: per device, 1 on "
+                             "CPUs); the gradient is bit-for-bit the same for any value");
   if (n_dims != 2 && n_dims != 3)
     r.fail("", "HashGrid encodes 2-D or 3-D positions in [0, 1]^d, but it was given " + std::to_string(n_dims) +
                    " input dims");

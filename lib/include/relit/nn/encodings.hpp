@@ -57,7 +57,7 @@ class FrequencyEncoding final : public Encoding {
     bool include_input = false;
   };
   /// Octaves between exact re-evaluations of the double-angle recurrence (see kernels/enc_frequency.cl).
-  static constexpr std::uint32_t kAnchorInterval = 4;
+  static constexpr std::uint32_t kAnchorInterval = 3;
 
   FrequencyEncoding(std::uint32_t n_input_dims, Options options);
 
@@ -122,6 +122,9 @@ class HashGridEncoding final : public Encoding {
     std::uint32_t log2_hashmap_size = 19;
     std::uint32_t base_resolution = 16;
     float per_level_scale = 2.0f;
+    /// Table ranges per level in the parameter-gradient pass; 0 = per device (1 on CPUs). The gradient is
+    /// bit-for-bit the same for any value: only the parallelism changes.
+    std::uint32_t gradient_ranges = 0;
   };
   /// One level's grid and its part of the parameter vector.
   struct Level {
@@ -151,7 +154,8 @@ class HashGridEncoding final : public Encoding {
   void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input, std::uint32_t in_col,
                 const BatchMatrix& d_output, std::uint32_t out_col, ParamSlice grads, bool accumulate,
                 BatchMatrix* d_input, Workspace* workspace) const override;
-  /// Table ranges per level in the parameter-gradient pass (1 on CPUs): the gradient is the same for any.
+  /// Table ranges per level in the parameter-gradient pass on `device` (Options::gradient_ranges, or 1 on
+  /// CPUs and enough to occupy a GPU otherwise).
   std::uint32_t gradient_ranges(const Device& device) const;
 
  private:

@@ -42,6 +42,7 @@ HashGridEncoding::HashGridEncoding(std::uint32_t n_input_dims, Options o) : m_di
   if (o.log2_hashmap_size < 10 || o.log2_hashmap_size > 24) throw InvalidArgument(who + "log2_hashmap_size must be in [10, 24]");
   if (o.base_resolution < 2) throw InvalidArgument(who + "base_resolution must be at least 2");
   if (!(o.per_level_scale >= 1.0f && o.per_level_scale <= 8.0f)) throw InvalidArgument(who + "per_level_scale must be in [1, 8]");
+  if (o.gradient_ranges > 4096) throw InvalidArgument(who + "gradient_ranges must be in [0, 4096]");
 
   const std::uint64_t table = 1ull << o.log2_hashmap_size;
   std::uint64_t offset = 0;
@@ -75,7 +76,8 @@ Json HashGridEncoding::hyperparams() const {
           {"n_features_per_level", m_options.n_features_per_level},
           {"log2_hashmap_size", m_options.log2_hashmap_size},
           {"base_resolution", m_options.base_resolution},
-          {"per_level_scale", m_options.per_level_scale}};
+          {"per_level_scale", m_options.per_level_scale},
+          {"gradient_ranges", m_options.gradient_ranges}};
 }
 
 void HashGridEncoding::initialize_params(float* out, std::uint64_t seed) const {
@@ -87,6 +89,7 @@ void HashGridEncoding::initialize_params(float* out, std::uint64_t seed) const {
 }
 
 std::uint32_t HashGridEncoding::gradient_ranges(const Device& device) const {
+  if (m_options.gradient_ranges) return m_options.gradient_ranges;
   if (device.info().type == "cpu") return 1;
   // Enough (level, range) work-items to occupy a GPU: each range rescans the batch, so no more than that.
   const std::uint32_t want = std::max(1u, device.info().compute_units) * 16;
