@@ -2,10 +2,8 @@
 #include "cli.hpp"
 
 #include <relit/config_reference.hpp>
-#include <relit/error.hpp>
+#include <relit/io/file.hpp>
 
-#include <cstdio>
-#include <fstream>
 #include <iostream>
 
 namespace relit::cli {
@@ -20,10 +18,7 @@ void add_config_reference_command(CLI::App& app) {
       std::cout << text;
       return;
     }
-    // Written next to the target, then renamed over it: an interrupted write never leaves half a file.
-    const std::string tmp = *output + ".tmp";
-    std::ofstream(tmp, std::ios::binary) << text;
-    if (std::rename(tmp.c_str(), output->c_str()) != 0) throw IOError("cannot write " + *output);
+    io::write_file_atomic(*output, text);  // an interrupted write never leaves half a file
   });
 }
 

@@ -1,6 +1,7 @@
 // Image I/O: EXR float round trip, PNG sRGB encoding, atomic writes, clear errors for bad files.
 #include "test_support.hpp"
 
+#include <relit/io/file.hpp>
 #include <relit/io/image.hpp>
 #include <relit/progress.hpp>
 
@@ -74,7 +75,7 @@ TEST(Image, AtomicWriteKeepsTheOldFileWhenWritingFails) {
   bad.pixels.resize(2);  // inconsistent: rejected before anything is touched
   EXPECT_THROW(write_image(path, bad), InvalidArgument);
   EXPECT_EQ(read_image(path).pixels, std::vector<float>(27, 1.5f));
-  write_text_atomic((dir.path() / "t.json").string(), "{}");
+  io::write_file_atomic((dir.path() / "t.json").string(), "{}");
   std::ifstream f(dir.path() / "t.json");
   std::string s;
   f >> s;

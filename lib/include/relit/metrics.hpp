@@ -24,7 +24,4 @@ struct ImageComparison {
 ImageComparison compare(const Device& device, const std::vector<float>& prediction, const std::vector<float>& reference,
                         std::uint32_t width, std::uint32_t height, std::uint32_t channels);
 
-/// The sRGB encoding used by the metrics (and by PNG output): clamp to [0, 1], then the sRGB curve.
-float srgb_encode(float linear);
-
 }  // namespace relit::metrics

@@ -4,6 +4,7 @@
 #include "cl/embedded_kernels.hpp"
 
 #include <relit/error.hpp>
+#include <relit/io/file.hpp>
 #include <relit/log.hpp>
 
 #include <cstdlib>
@@ -17,14 +18,6 @@ namespace relit::detail {
 
 namespace {
 
-std::string read_text(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw IOError("cannot read kernel source " + path.string());
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 std::string raw_source(const std::string& name, const std::string& included_from) {
   if (const char* dir = std::getenv("RELIT_KERNEL_DIR"); dir && *dir) {
     const std::filesystem::path path = std::filesystem::path(dir) / name;
@@ -34,7 +27,7 @@ std::string raw_source(const std::string& name, const std::string& included_from
         log_info(std::string("reading kernels from RELIT_KERNEL_DIR=") + dir);
         announced = true;
       }
-      return read_text(path);
+      return io::read_file(path.string());
     }
   }
   for (const auto& k : embedded_kernels())

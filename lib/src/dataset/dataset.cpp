@@ -1,6 +1,7 @@
 // Dataset generation: view planning, rendering through the reference path tracer, atomic folder writes.
 #include <relit/dataset.hpp>
 #include <relit/error.hpp>
+#include <relit/io/file.hpp>
 #include <relit/io/image.hpp>
 #include <relit/log.hpp>
 #include <relit/version.hpp>
@@ -190,7 +191,7 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
       env_json = {{"file", "environment.exr"}, {"scale", scene.environment->scale()}, {"visible", scene.environment->visible()}};
       scene_json["environment"] = env_json;
     }
-    write_text_atomic((tmp / "scene.json").string(), scene_json.dump(2) + "\n");
+    io::write_file_atomic((tmp / "scene.json").string(), scene_json.dump(2) + "\n");
 
     const PathTracer pt(device, scene);
     RenderSettings rs;
@@ -231,7 +232,7 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
         doc["frames"].push_back(frame);
         ++views_done;
       }
-      write_text_atomic((tmp / ("transforms_" + name + ".json")).string(), doc.dump(2) + "\n");
+      io::write_file_atomic((tmp / ("transforms_" + name + ".json")).string(), doc.dump(2) + "\n");
     }
     // Complete: move it into place. An existing folder is replaced only now, and only on request.
     if (fs::exists(out)) {

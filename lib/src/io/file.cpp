@@ -20,12 +20,31 @@ namespace {
 }
 }  // namespace
 
-void write_file_atomic(const std::string& path, const std::string& bytes) {
+std::string temporary_sibling(const std::string& path) {
   static std::atomic<unsigned> counter{0};
+  const std::filesystem::path p(path);
+  return (p.parent_path() / ("." + p.stem().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
+                             std::to_string(counter++) + p.extension().string()))
+      .string();
+}
+
+void replace_file(const std::string& tmp, const std::string& path) {
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    fail("replace", path, err);
+  }
+  // Make the rename itself durable.
   const std::filesystem::path target(path);
-  const std::string tmp = (target.parent_path() / ("." + target.filename().string() + ".tmp-" +
-                                                   std::to_string(::getpid()) + "-" + std::to_string(counter++)))
-                              .string();
+  const std::string dir = target.has_parent_path() ? target.parent_path().string() : ".";
+  if (const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC); dfd >= 0) {
+    ::fsync(dfd);
+    ::close(dfd);
+  }
+}
+
+void write_file_atomic(const std::string& path, const std::string& bytes) {
+  const std::string tmp = temporary_sibling(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) fail("create a temporary file for", path, errno);
   std::size_t done = 0;
@@ -45,17 +64,7 @@ void write_file_atomic(const std::string& path, const std::string& bytes) {
     ::unlink(tmp.c_str());
     fail("flush", path, err);
   }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    fail("replace", path, err);
-  }
-  // Make the rename itself durable.
-  const std::string dir = target.has_parent_path() ? target.parent_path().string() : ".";
-  if (const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC); dfd >= 0) {
-    ::fsync(dfd);
-    ::close(dfd);
-  }
+  replace_file(tmp, path);
 }
 
 std::string read_file(const std::string& path) {

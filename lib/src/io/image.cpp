@@ -1,5 +1,6 @@
 // Image I/O through OpenImageIO, with atomic writes (temporary file in the target folder + rename).
 #include <relit/error.hpp>
+#include <relit/io/file.hpp>
 #include <relit/io/image.hpp>
 
 #include <OpenImageIO/imageio.h>
@@ -26,25 +27,6 @@ std::string lower_extension(const std::string& path) {
 
 bool is_float_format(const std::string& ext) { return ext == ".exr" || ext == ".hdr" || ext == ".pfm"; }
 bool is_8bit_format(const std::string& ext) { return ext == ".png" || ext == ".jpg" || ext == ".jpeg"; }
-
-// A sibling of `path` that keeps its extension (OpenImageIO picks the writer by extension) and is unique
-// per process and call, so concurrent writers never share a temporary file.
-fs::path temporary_sibling(const fs::path& path) {
-  static std::atomic<unsigned> counter{0};
-  fs::path tmp = path;
-  tmp.replace_filename("." + path.stem().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
-                       std::to_string(counter++) + path.extension().string());
-  return tmp;
-}
-
-void rename_into_place(const fs::path& tmp, const fs::path& path) {
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw IOError("cannot move the written file into place as '" + path.string() + "': " + ec.message());
-  }
-}
 
 }  // namespace
 
@@ -91,7 +73,7 @@ void write_image(const std::string& path, const Image& image) {
   if (target.has_parent_path() && !fs::is_directory(target.parent_path()))
     throw IOError("cannot write '" + path + "': folder '" + target.parent_path().string() + "' does not exist");
 
-  const fs::path tmp = temporary_sibling(target);
+  const fs::path tmp = io::temporary_sibling(target.string());
   auto out = OIIO::ImageOutput::create(tmp.string());
   if (!out) throw IOError("cannot write '" + path + "': " + OIIO::geterror());
   const bool eight_bit = is_8bit_format(ext);
@@ -114,25 +96,7 @@ void write_image(const std::string& path, const Image& image) {
     fs::remove(tmp, ec);
     throw IOError("cannot write '" + path + "': " + out->geterror());
   }
-  rename_into_place(tmp, target);
-}
-
-void write_text_atomic(const std::string& path, const std::string& text) {
-  const fs::path target(path);
-  const fs::path tmp = temporary_sibling(target);
-  {
-    std::ofstream f(tmp, std::ios::binary);
-    if (!f) throw IOError("cannot write '" + path + "': cannot create '" + tmp.string() + "'");
-    f << text;
-    f.flush();
-    if (!f) {
-      f.close();
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw IOError("cannot write '" + path + "' (disk full?)");
-    }
-  }
-  rename_into_place(tmp, target);
+  io::replace_file(tmp.string(), target.string());
 }
 
 }  // namespace relit

@@ -27,11 +27,6 @@ double sum_rows(const Buffer<float>& rows) {
 }
 }  // namespace
 
-float srgb_encode(float linear) {
-  const float x = std::min(std::max(linear, 0.0f), 1.0f);
-  return x <= 0.0031308f ? 12.92f * x : 1.055f * std::pow(x, 1.0f / 2.4f) - 0.055f;
-}
-
 ImageComparison compare(const Device& device, const std::vector<float>& prediction, const std::vector<float>& reference,
                         std::uint32_t width, std::uint32_t height, std::uint32_t channels) {
   const std::size_t n = std::size_t(width) * height * channels;

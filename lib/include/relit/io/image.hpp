@@ -32,9 +32,6 @@ Image read_image(const std::string& path);
 /// InvalidArgument for an empty image or an unsupported extension.
 void write_image(const std::string& path, const Image& image);
 
-/// Writes `text` to `path` atomically (temporary file + rename). Throws IOError on failure.
-void write_text_atomic(const std::string& path, const std::string& text);
-
 /// sRGB transfer function of a linear value clamped to [0, 1].
 float linear_to_srgb(float linear);
 float srgb_to_linear(float encoded);
