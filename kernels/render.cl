@@ -36,12 +36,12 @@
 #define TILE_STORE(v, base, tile, cols, f) vstore16((v), 0, (base) + ((size_t)(tile) * (cols) + (f)) * 16)
 
 // HG phase and its derivative in g, for mu = w_o . w_i (both pointing away from the sample).
-inline float16 hg_phase(float16 g, float16 mu) {
+inline float16 hg_phase16(float16 g, float16 mu) {
   const float16 d = fma(g, g, 1.0f) + 2.0f * g * mu;
   const float16 r = rsqrt(d);
   return INV_4PI * (1.0f - g * g) * r * r * r;
 }
-inline float16 hg_dphase_dg(float16 g, float16 mu) {
+inline float16 hg_dphase16_dg(float16 g, float16 mu) {
   const float16 d = fma(g, g, 1.0f) + 2.0f * g * mu;
   const float16 r = rsqrt(d);
   const float16 r5 = r * r * r * r * r;
@@ -134,7 +134,7 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
   if (tile >= n_tiles) return;
   const uint ray_index = tile / (N_SAMPLES / 16);
   const TileLight L = tile_light(rays + (size_t)ray_index * RAY_FLOATS, t, props, tile);
-  const float16 p_l = hg_phase(L.g, L.mu_l) * L.direct;
+  const float16 p_l = hg_phase16(L.g, L.mu_l) * L.direct;
   float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
 #if N_SH > 0
   float16 c[3 * N_SH];
@@ -142,7 +142,7 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
   float16 i_r = 0.0f, i_g = 0.0f, i_b = 0.0f;
   for (uint k = 0; k < N_DIRS; ++k) {
     const float mu = L.wo.x * dirs[3 * k] + L.wo.y * dirs[3 * k + 1] + L.wo.z * dirs[3 * k + 2];
-    const float16 p = hg_phase(L.g, (float16)(mu));
+    const float16 p = hg_phase16(L.g, (float16)(mu));
     __global const float* Y = sh_basis + (size_t)k * N_SH;
     float16 lr = 0.0f, lg = 0.0f, lb = 0.0f;
     for (uint j = 0; j < N_SH; ++j) {
@@ -182,9 +182,9 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   // Upstream gradient per channel on S (radiance = a ⊙ S).
   const float16 er = dr * ar, eg = dg * ag, eb = db * ab;
   const float16 dir_common = L.direct;
-  const float16 p_l = hg_phase(L.g, L.mu_l) * dir_common;
+  const float16 p_l = hg_phase16(L.g, L.mu_l) * dir_common;
   float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
-  float16 d_g = hg_dphase_dg(L.g, L.mu_l) * dir_common *
+  float16 d_g = hg_dphase16_dg(L.g, L.mu_l) * dir_common *
                 (er * L.intensity.x + eg * L.intensity.y + eb * L.intensity.z);
 #if N_SH > 0
   float16 c[3 * N_SH];
@@ -197,8 +197,8 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   float16 i_r = 0.0f, i_g = 0.0f, i_b = 0.0f;
   for (uint k = 0; k < N_DIRS; ++k) {
     const float mu = L.wo.x * dirs[3 * k] + L.wo.y * dirs[3 * k + 1] + L.wo.z * dirs[3 * k + 2];
-    const float16 p = hg_phase(L.g, (float16)(mu));
-    const float16 dp = hg_dphase_dg(L.g, (float16)(mu));
+    const float16 p = hg_phase16(L.g, (float16)(mu));
+    const float16 dp = hg_dphase16_dg(L.g, (float16)(mu));
     __global const float* Y = sh_basis + (size_t)k * N_SH;
     float16 lr = 0.0f, lg = 0.0f, lb = 0.0f;
     for (uint j = 0; j < N_SH; ++j) {
