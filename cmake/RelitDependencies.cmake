@@ -21,7 +21,18 @@ foreach(_dir "/usr/lib/${CMAKE_LIBRARY_ARCHITECTURE}/cmake/OpenVDB" "/usr/lib/cm
     break()
   endif()
 endforeach()
+# FindOpenVDB sets BUILD_SHARED_LIBS (and Boost_USE_STATIC_LIBS) in the caller's scope: keep ours.
+set(_relit_shared_libs_defined FALSE)
+if(DEFINED BUILD_SHARED_LIBS)
+  set(_relit_shared_libs_defined TRUE)
+  set(_relit_shared_libs "${BUILD_SHARED_LIBS}")
+endif()
 find_package(OpenVDB REQUIRED)                     # OpenVDB::openvdb
+if(_relit_shared_libs_defined)
+  set(BUILD_SHARED_LIBS "${_relit_shared_libs}")
+else()
+  unset(BUILD_SHARED_LIBS)
+endif()
 
 if(RELIT_WITH_CLBLAST)
   find_package(CLBlast CONFIG REQUIRED)            # imported target `clblast` (no namespace)

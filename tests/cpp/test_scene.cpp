@@ -163,7 +163,10 @@ TEST(Vdb, ImportsTheFogVolumeFixture) {
   EXPECT_THROW(load_vdb_density(path, "no_such_grid", 16), IOError);
   Json j = Scene::builtin_json("cloud", 0, 16);
   j["medium"]["source"] = {{"type", "vdb"}, {"file", "sphere_fog.vdb"}, {"resolution", 16}};
-  EXPECT_NO_THROW(Scene::from_json(j, RELIT_TEST_DATA_DIR));
+  const Scene s = Scene::from_json(j, RELIT_TEST_DATA_DIR);
+  const std::string resolved = s.description["medium"]["source"]["file"];
+  EXPECT_TRUE(std::filesystem::path(resolved).is_absolute()) << resolved;
+  EXPECT_EQ(Scene::from_json(s.description).medium->density.values, s.medium->density.values);
 }
 
 }  // namespace relit

@@ -60,4 +60,21 @@ class PathTracer {
 Image render_reference(const Device& device, const Scene& scene, std::size_t camera_index, const RenderSettings& settings,
                        const ProgressCallback& progress = {});
 
+/// Throughput of the path tracer on the default cloud scene (built-in "cloud", 64^3 grid, one point light at
+/// distance 4, unlimited bounces), measured after a correctness check. For `relit bench` and bench_pathtrace.
+struct PathTraceBenchmark {
+  std::string scene;
+  int resolution = 0;
+  std::uint32_t spp = 0, reps = 0;
+  double warmup_seconds = 0;    ///< first render (kernel build and first launch)
+  double median_seconds = 0;    ///< median over `reps` renders
+  double samples_per_second = 0;
+  double furnace_sigma = 0;     ///< white-furnace check: |mean - L| in standard errors (must be < 5)
+};
+
+/// Verifies (white furnace: throws DeviceError when the device renders it wrong), then times `reps` renders
+/// of resolution^2 pixels at `spp` samples per pixel. `scene_resolution` is the cloud's grid size.
+PathTraceBenchmark benchmark_pathtracer(const Device& device, int resolution = 128, std::uint32_t spp = 16,
+                                        std::uint32_t reps = 5, int scene_resolution = 64);
+
 }  // namespace relit

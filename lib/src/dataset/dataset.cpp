@@ -209,10 +209,12 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
         rs.seed = dataset_view_seed(s.seed, name, i);
         const std::string stem = f.file_path.substr(0, f.file_path.size() - 4);
         const std::uint64_t base = views_done * per_view;
-        const RenderResult r = pt.render(f.camera, {f.light}, rs, [&](const Progress& p) {
+        ProgressCallback per_view;  // without a callback, launches run back to back with no waiting
+        if (progress) per_view = [&](const Progress& p) {
           tracker.update(base + p.done, stem);
           return true;
-        });
+        };
+        const RenderResult r = pt.render(f.camera, {f.light}, rs, per_view);
         write_image((tmp / f.file_path).string(), r.image);
         if (s.previews) {
           Image rgb(r.image.width, r.image.height, 3);

@@ -93,6 +93,8 @@ ProceduralMedium read_medium_source(const Json& j, const std::string& ptr, const
     const int res = int(r.uint("resolution", 64, 8, 512, "dense grid voxels per side"));
     const float fill = r.number("fill", 0.9f, 0.1f, 1.0f, "fraction of the box the longest side of the volume spans");
     m.density = load_vdb_density(resolve_path(file, base_dir), grid, res, fill);
+    // The resolved description must load from anywhere (it is copied next to datasets): absolute path.
+    r.set_resolved("file", fs::absolute(resolve_path(file, base_dir)).lexically_normal().string());
   } else {
     throw ConfigError(ptr + "/type", "unknown medium source type '" + type + "'; valid types: cloud, smoke, blobs, constant, sphere, vdb");
   }
