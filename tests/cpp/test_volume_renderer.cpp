@@ -23,7 +23,7 @@ constexpr double kPi = 3.14159265358979323846;
 
 double hg(double g, double mu) { return (1 - g * g) / (4 * kPi * std::pow(1 + g * g + 2 * g * mu, 1.5)); }
 
-struct Scene {
+struct RayScene {
   std::uint32_t n_rays, n_samples, n_sh, n_dirs;
   std::vector<float> rays;   // kRayFloats per ray
   std::vector<double> props;  // row-major, n_rays * n_samples x (6 + 3 n_sh)
@@ -31,10 +31,10 @@ struct Scene {
   std::uint32_t cols() const { return 6 + 3 * n_sh; }
 };
 
-Scene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int lmax, std::uint32_t n_dirs, unsigned seed) {
+RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int lmax, std::uint32_t n_dirs, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0, 1);
-  Scene s{n_rays, n_samples, lmax < 0 ? 0u : std::uint32_t((lmax + 1) * (lmax + 1)), n_dirs, {}, {}, {}, {}};
+  RayScene s{n_rays, n_samples, lmax < 0 ? 0u : std::uint32_t((lmax + 1) * (lmax + 1)), n_dirs, {}, {}, {}, {}};
   auto unit = [&] {
     Vec3 v(u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1);
     while (v.norm() < 0.1 || v.norm() > 1) v = Vec3(u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1);
@@ -67,7 +67,7 @@ Scene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int lmax, std:
 }
 
 // Double-precision reference of sample placement + radiance + compositing (stratum centres).
-std::vector<double> reference_color(const Scene& s, const std::vector<double>& props) {
+std::vector<double> reference_color(const RayScene& s, const std::vector<double>& props) {
   std::vector<double> color;
   const std::uint32_t cols = s.cols();
   for (std::uint32_t r = 0; r < s.n_rays; ++r) {
@@ -113,7 +113,7 @@ struct DeviceRun {
   std::vector<float> color, transmittance, d_props;
 };
 
-DeviceRun run_device(const Device& dev, const Scene& s, int lmax, const std::vector<float>& d_color) {
+DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::vector<float>& d_color) {
   VolumeRenderer renderer(dev, {s.n_samples, lmax, s.n_dirs});
   const std::uint32_t n = s.n_rays * s.n_samples;
   Buffer<float> rays(dev, s.rays), t(dev, n), delta(dev, n), dirs(dev, s.dirs),
@@ -131,7 +131,7 @@ DeviceRun run_device(const Device& dev, const Scene& s, int lmax, const std::vec
 
 TEST(VolumeRenderer, ForwardMatchesDoubleReference) {
   for (const int lmax : {-1, 0, 2}) {
-    const Scene s = random_scene(7, 32, lmax, 16, 11 + lmax);
+    const RayScene s = random_scene(7, 32, lmax, 16, 11 + lmax);
     const auto got = run_device(test::test_device(), s, lmax, std::vector<float>(3 * s.n_rays, 1.f));
     const auto ref = reference_color(s, s.props);
     for (std::size_t i = 0; i < ref.size(); ++i)
@@ -141,7 +141,7 @@ TEST(VolumeRenderer, ForwardMatchesDoubleReference) {
 
 TEST(VolumeRenderer, BackwardMatchesFiniteDifferencesOfTheReference) {
   const int lmax = 1;
-  const Scene s = random_scene(3, 16, lmax, 8, 5);
+  const RayScene s = random_scene(3, 16, lmax, 8, 5);
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> u(-1, 1);
   std::vector<float> w(3 * s.n_rays);
@@ -173,7 +173,7 @@ TEST(VolumeRenderer, BackwardMatchesFiniteDifferencesOfTheReference) {
 TEST(VolumeRenderer, AbsorbingSlabTransmitsExpMinusSigmaD) {
   // A ray along +x through the box (length 2) in a medium of sigma 0.7 and albedo 0: colour = T bg, T = e^-1.4.
   const Device dev = test::test_device();
-  Scene s = random_scene(1, 64, -1, 4, 1);
+  RayScene s = random_scene(1, 64, -1, 4, 1);
   const float rec[kRayFloats] = {-3, 0.1f, -0.2f, 0, 1, 0, 0, 0, 0, 5, 0, 0, 100, 100, 100, 0, 0.5f, 1.0f, 2.0f, 0};
   s.rays.assign(rec, rec + kRayFloats);
   for (std::uint32_t i = 0; i < 64; ++i) {
