@@ -82,6 +82,32 @@ struct Owned {
   }
   nn::ConstParamSlice cparams() const { return {&params, 0}; }
   nn::ParamSlice gslice() { return {&grads, 0}; }
+  std::unique_ptr<nn::Workspace> workspace;
+
+  virtual ~Owned() = default;
+  virtual void run_inference(const nn::BatchMatrix& in, nn::BatchMatrix& out) = 0;
+  virtual void run_training(const nn::BatchMatrix& in, nn::BatchMatrix& out, const nn::BatchMatrix& d_out,
+                            nn::BatchMatrix& d_in) = 0;
+
+  FloatArray forward(const FloatArray& x) {
+    const std::uint32_t n = rows_of(x, component->n_input_dims(), "input");
+    nn::BatchMatrix in(device, n, component->n_input_dims()), out(device, n, component->n_output_dims());
+    upload(in, x);
+    run_inference(in, out);
+    return download(out);
+  }
+  /// (dL/dx, dL/dparams) for the given dL/d(output), after a training forward pass on x.
+  py::tuple backward(const FloatArray& x, const FloatArray& d_out) {
+    const std::uint32_t n = rows_of(x, component->n_input_dims(), "input");
+    if (rows_of(d_out, component->n_output_dims(), "d_output") != n)
+      throw InvalidArgument("input and d_output have different numbers of rows");
+    nn::BatchMatrix in(device, n, component->n_input_dims()), out(device, n, component->n_output_dims()),
+        dout(device, n, component->n_output_dims()), din(device, n, component->n_input_dims());
+    upload(in, x);
+    upload(dout, d_out);
+    run_training(in, out, dout, din);
+    return py::make_tuple(download(din), to_array(grads.read()));
+  }
   FloatArray get_params() const { return to_array(params.read()); }
   void set_params(const FloatArray& p) {
     if (static_cast<std::size_t>(p.size()) != params.size())
@@ -91,60 +117,36 @@ struct Owned {
 };
 
 struct PyEncoding : Owned<nn::Encoding> {
-  std::unique_ptr<nn::Workspace> workspace;
   PyEncoding(const py::object& config, std::uint32_t n_input_dims, const py::object& dev, std::uint64_t seed) {
     device = device_or_default(dev);
     component = nn::create_encoding(to_json(config), n_input_dims);
     workspace = component->make_workspace(device);
     init(seed);
   }
-  FloatArray forward(const FloatArray& x) {
-    const std::uint32_t n = rows_of(x, component->n_input_dims(), "input");
-    nn::BatchMatrix in(device, n, component->n_input_dims()), out(device, n, component->n_output_dims());
-    upload(in, x);
+  void run_inference(const nn::BatchMatrix& in, nn::BatchMatrix& out) override {
     component->forward(device, cparams(), in, out, 0, workspace.get());
-    return download(out);
   }
-  py::tuple backward(const FloatArray& x, const FloatArray& d_out) {
-    const std::uint32_t n = rows_of(x, component->n_input_dims(), "input");
-    if (rows_of(d_out, component->n_output_dims(), "d_output") != n)
-      throw InvalidArgument("input and d_output have different numbers of rows");
-    nn::BatchMatrix in(device, n, component->n_input_dims()), out(device, n, component->n_output_dims()),
-        dout(device, n, component->n_output_dims()), din(device, n, component->n_input_dims());
-    upload(in, x);
-    upload(dout, d_out);
+  void run_training(const nn::BatchMatrix& in, nn::BatchMatrix& out, const nn::BatchMatrix& d_out,
+                    nn::BatchMatrix& d_in) override {
     component->forward(device, cparams(), in, out, 0, workspace.get());
-    component->backward(device, cparams(), in, dout, 0, gslice(), false, &din, workspace.get());
-    return py::make_tuple(download(din), to_array(grads.read()));
+    component->backward(device, cparams(), in, d_out, 0, gslice(), false, &d_in, workspace.get());
   }
 };
 
 struct PyNetwork : Owned<nn::Network> {
-  std::unique_ptr<nn::Workspace> workspace;
   PyNetwork(const py::object& config, std::uint32_t n_in, std::uint32_t n_out, const py::object& dev, std::uint64_t seed) {
     device = device_or_default(dev);
     component = nn::create_network(to_json(config), n_in, n_out);
     workspace = component->make_workspace(device);
     init(seed);
   }
-  FloatArray forward(const FloatArray& x) {
-    const std::uint32_t n = rows_of(x, component->n_input_dims(), "input");
-    nn::BatchMatrix in(device, n, component->n_input_dims()), out(device, n, component->n_output_dims());
-    upload(in, x);
+  void run_inference(const nn::BatchMatrix& in, nn::BatchMatrix& out) override {
     component->inference(device, cparams(), in, out);
-    return download(out);
   }
-  py::tuple backward(const FloatArray& x, const FloatArray& d_out) {
-    const std::uint32_t n = rows_of(x, component->n_input_dims(), "input");
-    if (rows_of(d_out, component->n_output_dims(), "d_output") != n)
-      throw InvalidArgument("input and d_output have different numbers of rows");
-    nn::BatchMatrix in(device, n, component->n_input_dims()), out(device, n, component->n_output_dims()),
-        dout(device, n, component->n_output_dims()), din(device, n, component->n_input_dims());
-    upload(in, x);
-    upload(dout, d_out);
+  void run_training(const nn::BatchMatrix& in, nn::BatchMatrix& out, const nn::BatchMatrix& d_out,
+                    nn::BatchMatrix& d_in) override {
     component->forward(device, cparams(), in, out, *workspace);
-    component->backward(device, cparams(), in, out, dout, gslice(), false, &din, *workspace);
-    return py::make_tuple(download(din), to_array(grads.read()));
+    component->backward(device, cparams(), in, out, d_out, gslice(), false, &d_in, *workspace);
   }
 };
 
