@@ -17,6 +17,7 @@
 //   S_ind = (4 pi / K) sum_k p(w_o, w_k; g) max(0, sum_j c_j Y_j(w_k))          (INDIRECT_MODE 0)
 // Directions point away from the sample (seed appendix A); w_o = -d. HG with the seed's +2g convention.
 #include "common.clh"
+#include "geometry.clh"
 
 #ifndef N_SAMPLES
 #define N_SAMPLES 64
@@ -61,12 +62,9 @@ __kernel void sample_rays(const uint n_rays, const uint jitter, const uint seed,
   __global float* ray = rays + (size_t)r * RAY_FLOATS;
   const float3 o = (float3)(ray[0], ray[1], ray[2]);
   const float3 d = (float3)(ray[4], ray[5], ray[6]);
-  const float3 inv = 1.0f / d;  // +-inf for axis-parallel rays: the slab test below handles it
-  const float3 t0 = (-1.0f - o) * inv, t1 = (1.0f - o) * inv;
-  const float3 lo = fmin(t0, t1), hi = fmax(t0, t1);
-  float tn = fmax(fmax(lo.x, lo.y), fmax(lo.z, 0.0f));
-  float tf = fmin(fmin(hi.x, hi.y), hi.z);
-  if (!(tf > tn)) tn = tf = 0.0f;
+  float tn, tf;
+  if (box_intersect(o, d, &tn, &tf) && tf > fmax(tn, 0.0f)) tn = fmax(tn, 0.0f);
+  else tn = tf = 0.0f;
   ray[3] = tn;
   ray[7] = tf;
   const float step = (tf - tn) / N_SAMPLES;

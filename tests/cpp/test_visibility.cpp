@@ -1,0 +1,123 @@
+// Visibility targets: a homogeneous grid gives exp(-sigma d) exactly; a random grid matches a double-precision
+// march with the same quadrature and trilinear lookup.
+#include "test_support.hpp"
+
+#include <relit/render/visibility.hpp>
+#include <relit/render/volume_renderer.hpp>
+
+#include <Eigen/Core>
+
+#include <cmath>
+#include <random>
+
+namespace relit {
+
+using nn::BatchMatrix;
+using render::kRayFloats;
+using V3 = Eigen::Vector3d;
+
+namespace {
+
+double lookup(const std::vector<float>& g, int n, const V3& p) {
+  V3 u = ((p.array() + 1) * 0.5 * n - 0.5).matrix();
+  for (int a = 0; a < 3; ++a) u[a] = std::min(std::max(u[a], 0.0), n - 1.0);
+  int lo[3], hi[3];
+  double f[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::min(int(std::floor(u[a])), n - 1);
+    hi[a] = std::min(lo[a] + 1, n - 1);
+    f[a] = u[a] - lo[a];
+  }
+  double v = 0;
+  for (int c = 0; c < 8; ++c) {
+    const int i = c & 1 ? hi[0] : lo[0], j = c & 2 ? hi[1] : lo[1], k = c & 4 ? hi[2] : lo[2];
+    const double w = (c & 1 ? f[0] : 1 - f[0]) * (c & 2 ? f[1] : 1 - f[1]) * (c & 4 ? f[2] : 1 - f[2]);
+    v += w * g[(std::size_t(k) * n + j) * n + i];
+  }
+  return v;
+}
+
+// Distance from x toward the light until the box is left (or the light reached).
+std::pair<double, double> shadow_segment(const V3& x, const V3& light) {
+  const V3 w = (light - x).normalized();
+  double t0 = -1e30, t1 = 1e30;
+  for (int a = 0; a < 3; ++a) {
+    const double u = (-1 - x[a]) / w[a], v = (1 - x[a]) / w[a];
+    t0 = std::max(t0, std::min(u, v));
+    t1 = std::min(t1, std::max(u, v));
+  }
+  const double start = std::max(t0, 0.0), end = std::min(t1, (light - x).norm());
+  return {start, std::max(end - start, 0.0)};
+}
+
+struct Setup {
+  std::vector<float> rays;
+  std::vector<float> positions, visibility;
+};
+
+Setup run(const Device& d, const std::vector<float>& grid, int n, std::uint32_t steps) {
+  const std::uint32_t n_rays = 6, n_samples = 16;
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<float> rays;
+  for (std::uint32_t r = 0; r < n_rays; ++r) {
+    const V3 o = 4 * V3(u(rng), u(rng), u(rng)).normalized();
+    const V3 dir = (V3(0.3 * u(rng), 0.3 * u(rng), 0.3 * u(rng)) - o).normalized();
+    const V3 light = (3 + u(rng)) * V3(u(rng), u(rng), u(rng)).normalized();
+    const float rec[kRayFloats] = {float(o.x()), float(o.y()), float(o.z()), 0, float(dir.x()), float(dir.y()),
+                                   float(dir.z()), 0, float(light.x()), float(light.y()), float(light.z()), 0,
+                                   1, 1, 1, 0, 0, 0, 0, 0};
+    rays.insert(rays.end(), rec, rec + kRayFloats);
+  }
+  render::VolumeRenderer renderer(d, {n_samples, -1, 1});
+  Buffer<float> r(d, rays), t(d, n_rays * n_samples), delta(d, n_rays * n_samples);
+  BatchMatrix pos(d, n_rays * n_samples, 3), vis(d, n_rays * n_samples, 1);
+  renderer.sample(r, n_rays, true, 3, t, delta, pos);
+  render::DensityGrid g{{n, n, n}, Buffer<float>(d, grid)};
+  render::march_visibility(d, r, n_rays, n_samples, pos, g, steps, vis);
+  return {rays, pos.download_row_major(), vis.download_row_major()};
+}
+
+}  // namespace
+
+TEST(Visibility, HomogeneousGridTransmitsExpMinusSigmaD) {
+  const auto s = run(test::test_device(), std::vector<float>(8, 0.8f), 2, 32);
+  for (std::size_t i = 0; i < s.visibility.size(); ++i) {
+    const V3 x(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2]);
+    const float* ray = &s.rays[(i / 16) * kRayFloats];
+    const double d = shadow_segment(x, V3(ray[8], ray[9], ray[10])).second;
+    EXPECT_NEAR(s.visibility[i], std::exp(-0.8 * d), 2e-6) << i;
+  }
+}
+
+TEST(Visibility, RandomGridMatchesDoublePrecisionMarch) {
+  const int n = 8;
+  const std::uint32_t steps = 48;
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(0, 3);
+  std::vector<float> grid(n * n * n);
+  for (auto& v : grid) v = u(rng);
+  const auto s = run(test::test_device(), grid, n, steps);
+  for (std::size_t i = 0; i < s.visibility.size(); ++i) {
+    const V3 x(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2]);
+    const float* ray = &s.rays[(i / 16) * kRayFloats];
+    const V3 light(ray[8], ray[9], ray[10]);
+    const auto [start, d] = shadow_segment(x, light);
+    const V3 w = (light - x).normalized();
+    double tau = 0;
+    for (std::uint32_t j = 0; j < steps; ++j) tau += lookup(grid, n, x + (start + (j + 0.5) * d / steps) * w);
+    tau *= d / steps;
+    EXPECT_NEAR(-std::log(s.visibility[i]), tau, 2e-5 * (1 + tau)) << i;
+  }
+}
+
+TEST(Visibility, BadShapesAreErrors) {
+  const Device d = test::test_device();
+  Buffer<float> rays(d, kRayFloats);
+  BatchMatrix pos(d, 16, 3), vis(d, 16, 1);
+  EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{2, 2, 2}, Buffer<float>(d, 7)}, 8, vis), InvalidArgument);
+  EXPECT_THROW(render::march_visibility(d, rays, 2, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 8, vis), InvalidArgument);
+  EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 0, vis), InvalidArgument);
+}
+
+}  // namespace relit
