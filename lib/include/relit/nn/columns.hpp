@@ -1,0 +1,21 @@
+// Column moves between BatchMatrix objects (kernels/columns.cl): assembling one matrix from several networks'
+// outputs and splitting its gradient again, without host round trips.
+#pragma once
+
+#include <relit/nn/batch.hpp>
+
+namespace relit::nn {
+
+/// dst[:, dst_col + j] = scale * src[:, src_col + j] for j < count (added to dst when `accumulate`).
+/// Both matrices must have the same batch size; the column ranges must fit.
+void copy_columns(const Device& device, const BatchMatrix& src, std::uint32_t src_col, BatchMatrix& dst,
+                  std::uint32_t dst_col, std::uint32_t count, float scale = 1.0f, bool accumulate = false);
+
+/// For 3 channel-major blocks of `per_channel` columns: dst = I_ch(ray) * src, where sample s belongs to ray
+/// s / samples_per_ray (a multiple of 16) and I is the ray record's RGB intensity (render::kRayFloats layout).
+/// Its own adjoint: the gradient goes back through the same call.
+void scale_rgb_by_ray_intensity(const Device& device, const Buffer<float>& rays, std::uint32_t samples_per_ray,
+                                const BatchMatrix& src, std::uint32_t src_col, BatchMatrix& dst, std::uint32_t dst_col,
+                                std::uint32_t per_channel);
+
+}  // namespace relit::nn

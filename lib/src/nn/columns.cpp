@@ -1,0 +1,43 @@
+// Column moves between batch matrices (kernels/columns.cl).
+#include <relit/cl/program.hpp>
+#include <relit/nn/columns.hpp>
+
+namespace relit::nn {
+
+namespace {
+void check(const BatchMatrix& src, std::uint32_t src_col, const BatchMatrix& dst, std::uint32_t dst_col,
+           std::uint32_t count, const char* what) {
+  if (src.batch() != dst.batch() || src_col + count > src.cols() || dst_col + count > dst.cols())
+    throw InvalidArgument(std::string(what) + ": columns [" + std::to_string(src_col) + ", " +
+                          std::to_string(src_col + count) + ") of a " + std::to_string(src.batch()) + "x" +
+                          std::to_string(src.cols()) + " matrix do not fit columns [" + std::to_string(dst_col) + ", " +
+                          std::to_string(dst_col + count) + ") of a " + std::to_string(dst.batch()) + "x" +
+                          std::to_string(dst.cols()) + " one");
+}
+}  // namespace
+
+void copy_columns(const Device& device, const BatchMatrix& src, std::uint32_t src_col, BatchMatrix& dst,
+                  std::uint32_t dst_col, std::uint32_t count, float scale, bool accumulate) {
+  check(src, src_col, dst, dst_col, count, "copy_columns");
+  const std::uint32_t n_tiles = src.padded() / kBatchTile;
+  device.kernel("columns.cl", "copy_columns")
+      .args(n_tiles, count, src.data(), src.cols(), src_col, dst.data(), dst.cols(), dst_col, scale,
+            std::uint32_t(accumulate))
+      .launch(n_tiles, 16);
+}
+
+void scale_rgb_by_ray_intensity(const Device& device, const Buffer<float>& rays, std::uint32_t samples_per_ray,
+                                const BatchMatrix& src, std::uint32_t src_col, BatchMatrix& dst, std::uint32_t dst_col,
+                                std::uint32_t per_channel) {
+  check(src, src_col, dst, dst_col, 3 * per_channel, "scale_rgb_by_ray_intensity");
+  if (samples_per_ray == 0 || samples_per_ray % kBatchTile != 0)
+    throw InvalidArgument("scale_rgb_by_ray_intensity: samples per ray must be a positive multiple of 16");
+  const std::uint32_t n_tiles = (src.batch() + kBatchTile - 1) / kBatchTile;
+  if (rays.size() < std::size_t((src.batch() + samples_per_ray - 1) / samples_per_ray) * 20)
+    throw InvalidArgument("scale_rgb_by_ray_intensity: fewer ray records than the samples need");
+  device.kernel("columns.cl", "scale_rgb_by_ray_intensity")
+      .args(n_tiles, per_channel, samples_per_ray, rays, src.data(), src.cols(), src_col, dst.data(), dst.cols(), dst_col)
+      .launch(n_tiles, 16);
+}
+
+}  // namespace relit::nn
