@@ -55,3 +55,17 @@ __kernel void image_rays(const uint n_rays, const uint first, const uint width, 
   const uint pixel = first + j;
   write_ray(rays + (size_t)j * RAY_FLOATS, camera, (pixel % width) + 0.5f, (pixel / width) + 0.5f, light);
 }
+
+// n directions uniform on the unit sphere from (seed, iteration, k), as an n x 3 tiled matrix.
+__kernel void sphere_directions(const uint n, const uint seed, const uint iteration, __global float* restrict dirs) {
+  const uint k = get_global_id(0);
+  if (k >= n) return;
+  const uint h = relit_hash2(relit_hash2(seed ^ 0x5bd1e995u, iteration), k);
+  const float z = 1.0f - 2.0f * relit_uniform(h);
+  const float phi = 2.0f * M_PI_F * relit_uniform(relit_hash(h ^ 0x68e31da4u));
+  const float r = sqrt(fmax(0.0f, 1.0f - z * z));
+  const size_t base = ((size_t)(k / 16) * 3) * 16 + k % 16;
+  dirs[base] = r * cos(phi);
+  dirs[base + 16] = r * sin(phi);
+  dirs[base + 32] = z;
+}

@@ -35,6 +35,9 @@
 // Samples of one tile as float16: 16 consecutive floats of the tiled layout.
 #define TILE_COL(base, tile, cols, f) vload16(0, (base) + ((size_t)(tile) * (cols) + (f)) * 16)
 #define TILE_STORE(v, base, tile, cols, f) vstore16((v), 0, (base) + ((size_t)(tile) * (cols) + (f)) * 16)
+// One element (row r, column f) of a tiled matrix: the K indirect directions (3 columns) and their SH basis
+// values (N_SH columns) come as BatchMatrix objects too.
+#define TILED(base, cols, r, f) (base)[(((size_t)(r) / 16) * (cols) + (f)) * 16 + (r) % 16]
 
 // HG phase and its derivative in g, for mu = w_o . w_i (both pointing away from the sample).
 inline float16 hg_phase16(float16 g, float16 mu) {
@@ -139,12 +142,11 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
   for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
   float16 i_r = 0.0f, i_g = 0.0f, i_b = 0.0f;
   for (uint k = 0; k < N_DIRS; ++k) {
-    const float mu = L.wo.x * dirs[3 * k] + L.wo.y * dirs[3 * k + 1] + L.wo.z * dirs[3 * k + 2];
+    const float mu = L.wo.x * TILED(dirs, 3, k, 0) + L.wo.y * TILED(dirs, 3, k, 1) + L.wo.z * TILED(dirs, 3, k, 2);
     const float16 p = hg_phase16(L.g, (float16)(mu));
-    __global const float* Y = sh_basis + (size_t)k * N_SH;
     float16 lr = 0.0f, lg = 0.0f, lb = 0.0f;
     for (uint j = 0; j < N_SH; ++j) {
-      const float y = Y[j];
+      const float y = TILED(sh_basis, N_SH, k, j);
       lr = fma(c[j], y, lr);
       lg = fma(c[N_SH + j], y, lg);
       lb = fma(c[2 * N_SH + j], y, lb);
@@ -194,13 +196,12 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   const float w = 4.0f * M_PI_F / N_DIRS;
   float16 i_r = 0.0f, i_g = 0.0f, i_b = 0.0f;
   for (uint k = 0; k < N_DIRS; ++k) {
-    const float mu = L.wo.x * dirs[3 * k] + L.wo.y * dirs[3 * k + 1] + L.wo.z * dirs[3 * k + 2];
+    const float mu = L.wo.x * TILED(dirs, 3, k, 0) + L.wo.y * TILED(dirs, 3, k, 1) + L.wo.z * TILED(dirs, 3, k, 2);
     const float16 p = hg_phase16(L.g, (float16)(mu));
     const float16 dp = hg_dphase16_dg(L.g, (float16)(mu));
-    __global const float* Y = sh_basis + (size_t)k * N_SH;
     float16 lr = 0.0f, lg = 0.0f, lb = 0.0f;
     for (uint j = 0; j < N_SH; ++j) {
-      const float y = Y[j];
+      const float y = TILED(sh_basis, N_SH, k, j);
       lr = fma(c[j], y, lr);
       lg = fma(c[N_SH + j], y, lg);
       lb = fma(c[2 * N_SH + j], y, lb);
@@ -215,7 +216,7 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
     const float16 gr = select(zero, p * er * w, lr > 0.0f), gg = select(zero, p * eg * w, lg > 0.0f),
                   gb = select(zero, p * eb * w, lb > 0.0f);
     for (uint j = 0; j < N_SH; ++j) {
-      const float y = Y[j];
+      const float y = TILED(sh_basis, N_SH, k, j);
       dc[j] = fma(gr, y, dc[j]);
       dc[N_SH + j] = fma(gg, y, dc[N_SH + j]);
       dc[2 * N_SH + j] = fma(gb, y, dc[2 * N_SH + j]);

@@ -3,6 +3,7 @@
 #include "test_support.hpp"
 
 #include <relit/render/volume_renderer.hpp>
+#include <relit/sh.hpp>
 
 #include <Eigen/Core>
 
@@ -116,9 +117,11 @@ struct DeviceRun {
 DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::vector<float>& d_color) {
   VolumeRenderer renderer(dev, {s.n_samples, lmax, s.n_dirs});
   const std::uint32_t n = s.n_rays * s.n_samples;
-  Buffer<float> rays(dev, s.rays), t(dev, n), delta(dev, n), dirs(dev, s.dirs),
-      basis(dev, s.basis.empty() ? std::vector<float>{0.f} : s.basis), color(dev, 3 * s.n_rays), trans(dev, s.n_rays),
+  Buffer<float> rays(dev, s.rays), t(dev, n), delta(dev, n), color(dev, 3 * s.n_rays), trans(dev, s.n_rays),
       dcol(dev, d_color);
+  BatchMatrix dirs(dev, s.n_dirs, 3), basis(dev, s.n_dirs, s.n_sh);
+  dirs.upload_row_major(s.dirs);
+  if (s.n_sh) basis.upload_row_major(s.basis);
   BatchMatrix pos(dev, n, 3), props(dev, n, s.cols()), rad(dev, n, 3), drad(dev, n, 3), dprops(dev, n, s.cols());
   props.upload_row_major(std::vector<float>(s.props.begin(), s.props.end()));
   renderer.sample(rays, s.n_rays, false, 0, t, delta, pos);
@@ -217,7 +220,9 @@ TEST(VolumeRenderer, MissingRayShowsTheBackgroundAndJitterStaysInStrata) {
   BatchMatrix props(dev, 32, 6), rad(dev, 32, 3);
   std::vector<float> pv(32 * 6, 1.0f);
   props.upload_row_major(pv);
-  Buffer<float> dirs(dev, std::vector<float>(12, 0.5f)), basis(dev, 1), color(dev, 6), trans(dev, 2);
+  Buffer<float> color(dev, 6), trans(dev, 2);
+  BatchMatrix dirs(dev, 4, 3), basis(dev, 4, 0);
+  dirs.upload_row_major(std::vector<float>(12, 0.5f));
   renderer.forward(r, 2, t, delta, props, dirs, basis, rad, color, trans);
   const auto c = color.read();
   EXPECT_EQ(trans.read()[0], 1.0f);
@@ -230,9 +235,34 @@ TEST(VolumeRenderer, BadSettingsAndShapesAreErrors) {
   EXPECT_THROW(VolumeRenderer(dev, {40, 2, 64}), InvalidArgument);
   EXPECT_THROW(VolumeRenderer(dev, {64, 10, 64}), InvalidArgument);
   VolumeRenderer renderer(dev, {16, 1, 4});
-  Buffer<float> rays(dev, 20), t(dev, 16), delta(dev, 16), dirs(dev, 12), basis(dev, 16), color(dev, 3), trans(dev, 1);
-  BatchMatrix props(dev, 16, 7), rad(dev, 16, 3);
+  Buffer<float> rays(dev, 20), t(dev, 16), delta(dev, 16), color(dev, 3), trans(dev, 1);
+  BatchMatrix props(dev, 16, 7), rad(dev, 16, 3), dirs(dev, 4, 3), basis(dev, 4, 4);
   EXPECT_THROW(renderer.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans), InvalidArgument);
+  BatchMatrix good(dev, 16, renderer.prop_cols()), few_dirs(dev, 3, 3);
+  EXPECT_THROW(renderer.forward(rays, 1, t, delta, good, few_dirs, basis, rad, color, trans), InvalidArgument);
+}
+
+TEST(VolumeRenderer, IndirectBasisIsUniformOnTheSphereAndMatchesHostSH) {
+  const Device dev = test::test_device();
+  const std::uint32_t k = 4096;
+  render::IndirectBasis basis(dev, k, 2);
+  basis.draw(5, 17);
+  const auto dirs = basis.dirs().download_row_major();
+  const auto y = basis.basis().download_row_major();
+  Vec3 mean = Vec3::Zero();
+  for (std::uint32_t i = 0; i < k; ++i) {
+    const Vec3 w(dirs[3 * i], dirs[3 * i + 1], dirs[3 * i + 2]);
+    ASSERT_NEAR(w.norm(), 1.0, 1e-5);
+    mean += w / k;
+    const auto ref = sh::eval(2, {w.x(), w.y(), w.z()});
+    for (std::size_t j = 0; j < 9; ++j) ASSERT_NEAR(y[i * 9 + j], ref[j], 2e-5) << i << " " << j;
+  }
+  EXPECT_LT(mean.norm(), 5 * std::sqrt(1.0 / k));  // E[w] = 0, each component has variance 1/3
+  // A new iteration draws new directions; the same one draws the same.
+  basis.draw(5, 18);
+  EXPECT_NE(basis.dirs().download_row_major(), dirs);
+  basis.draw(5, 17);
+  EXPECT_EQ(basis.dirs().download_row_major(), dirs);
 }
 
 }  // namespace relit

@@ -1,5 +1,6 @@
 // VolumeRenderer: argument checks and kernel launches (the math is in kernels/render.cl).
 #include <relit/cl/program.hpp>
+#include <relit/nn/registry.hpp>
 #include <relit/render/volume_renderer.hpp>
 
 namespace relit::render {
@@ -19,7 +20,12 @@ VolumeRenderer::VolumeRenderer(const Device& device, const RendererSettings& set
                {"N_DIRS", std::to_string(settings.n_dirs)}};
 }
 
-void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, const char* what) const {
+void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
+                           const nn::BatchMatrix& sh_basis, const char* what) const {
+  if (dirs.batch() != m_settings.n_dirs || dirs.cols() != 3 || sh_basis.batch() != m_settings.n_dirs ||
+      sh_basis.cols() != m_n_sh)
+    throw InvalidArgument(std::string("VolumeRenderer::") + what + ": need " + std::to_string(m_settings.n_dirs) +
+                          " directions (x3) and their " + std::to_string(m_n_sh) + " SH basis values");
   const std::uint64_t n = std::uint64_t(n_rays) * m_settings.n_samples;
   if (props.batch() != n || props.cols() != prop_cols())
     throw InvalidArgument(std::string("VolumeRenderer::") + what + ": properties are " + std::to_string(props.batch()) +
@@ -39,19 +45,16 @@ void VolumeRenderer::sample(Buffer<float>& rays, std::uint32_t n_rays, bool jitt
 }
 
 void VolumeRenderer::forward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t,
-                             const Buffer<float>& delta, const nn::BatchMatrix& props, const Buffer<float>& dirs,
-                             const Buffer<float>& sh_basis, nn::BatchMatrix& radiance, Buffer<float>& color,
+                             const Buffer<float>& delta, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
+                             const nn::BatchMatrix& sh_basis, nn::BatchMatrix& radiance, Buffer<float>& color,
                              Buffer<float>& transmittance) const {
-  check(n_rays, props, "forward");
-  if (dirs.size() < 3 * m_settings.n_dirs || sh_basis.size() < std::size_t(m_settings.n_dirs) * m_n_sh)
-    throw InvalidArgument("VolumeRenderer::forward: need " + std::to_string(m_settings.n_dirs) +
-                          " directions and their SH basis values");
+  check(n_rays, props, dirs, sh_basis, "forward");
   if (color.size() < 3 * std::size_t(n_rays) || transmittance.size() < n_rays || radiance.cols() != 3)
     throw InvalidArgument("VolumeRenderer::forward: output buffers too small");
   radiance.resize(props.batch());
   const auto n_tiles = static_cast<std::uint32_t>(props.batch() / nn::kBatchTile);
   m_device.kernel("render.cl", "render_radiance", m_defines)
-      .args(n_tiles, rays, t, props.data(), dirs, sh_basis, radiance.data())
+      .args(n_tiles, rays, t, props.data(), dirs.data(), sh_basis.data(), radiance.data())
       .launch(n_tiles, 16);
   m_device.kernel("render.cl", "composite", m_defines)
       .args(n_rays, rays, delta, props.data(), radiance.data(), color, transmittance)
@@ -59,10 +62,10 @@ void VolumeRenderer::forward(const Buffer<float>& rays, std::uint32_t n_rays, co
 }
 
 void VolumeRenderer::backward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t,
-                              const Buffer<float>& delta, const nn::BatchMatrix& props, const Buffer<float>& dirs,
-                              const Buffer<float>& sh_basis, const nn::BatchMatrix& radiance, const Buffer<float>& color,
+                              const Buffer<float>& delta, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
+                              const nn::BatchMatrix& sh_basis, const nn::BatchMatrix& radiance, const Buffer<float>& color,
                               const Buffer<float>& d_color, nn::BatchMatrix& d_radiance, nn::BatchMatrix& d_props) const {
-  check(n_rays, props, "backward");
+  check(n_rays, props, dirs, sh_basis, "backward");
   if (d_props.cols() != prop_cols() || d_radiance.cols() != 3 || d_color.size() < 3 * std::size_t(n_rays))
     throw InvalidArgument("VolumeRenderer::backward: gradient buffers have the wrong shape");
   d_props.resize(props.batch());
@@ -72,8 +75,23 @@ void VolumeRenderer::backward(const Buffer<float>& rays, std::uint32_t n_rays, c
       .args(n_rays, rays, delta, props.data(), radiance.data(), color, d_color, d_props.data(), d_radiance.data())
       .launch(n_rays, 16);
   m_device.kernel("render.cl", "render_radiance_backward", m_defines)
-      .args(n_tiles, rays, t, props.data(), dirs, sh_basis, d_radiance.data(), d_props.data())
+      .args(n_tiles, rays, t, props.data(), dirs.data(), sh_basis.data(), d_radiance.data(), d_props.data())
       .launch(n_tiles, 16);
+}
+
+IndirectBasis::IndirectBasis(const Device& device, std::uint32_t n_dirs, int sh_lmax)
+    : m_device(device),
+      m_dirs(device, n_dirs, 3),
+      m_basis(device, n_dirs, sh_lmax < 0 ? 0u : static_cast<std::uint32_t>((sh_lmax + 1) * (sh_lmax + 1))) {
+  if (n_dirs == 0) throw InvalidArgument("IndirectBasis: need at least one direction");
+  if (sh_lmax > 9) throw InvalidArgument("IndirectBasis: sh_lmax must be at most 9");
+  if (sh_lmax >= 0) m_sh = nn::create_encoding({{"type", "SphericalHarmonics"}, {"degree", sh_lmax + 1}}, 3);
+}
+
+void IndirectBasis::draw(std::uint32_t seed, std::uint32_t iteration) {
+  const std::uint32_t n = m_dirs.batch();
+  m_device.kernel("rays.cl", "sphere_directions").args(n, seed, iteration, m_dirs.data()).launch(n, 16);
+  if (m_sh) m_sh->forward(m_device, {nullptr, 0}, m_dirs, m_basis, 0, nullptr);
 }
 
 }  // namespace relit::render

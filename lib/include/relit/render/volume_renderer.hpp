@@ -15,6 +15,9 @@
 
 #include <relit/cl/buffer.hpp>
 #include <relit/nn/batch.hpp>
+#include <relit/nn/module.hpp>
+
+#include <memory>
 
 #include <cstdint>
 
@@ -46,23 +49,42 @@ class VolumeRenderer {
   void sample(Buffer<float>& rays, std::uint32_t n_rays, bool jitter, std::uint32_t seed, Buffer<float>& t,
               Buffer<float>& delta, nn::BatchMatrix& positions) const;
 
-  /// `dirs`: n_dirs unit directions (3 floats each); `sh_basis`: Y_j(dir_k), n_dirs x n_sh, row-major.
+  /// `dirs`: the n_dirs unit directions of the indirect sum (n_dirs x 3); `sh_basis`: Y_j(dir_k) (n_dirs x
+  /// n_sh). IndirectBasis draws both on the device.
   void forward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t, const Buffer<float>& delta,
-               const nn::BatchMatrix& props, const Buffer<float>& dirs, const Buffer<float>& sh_basis,
+               const nn::BatchMatrix& props, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis,
                nn::BatchMatrix& radiance, Buffer<float>& color, Buffer<float>& transmittance) const;
 
   /// Uses `radiance` and `color` from the forward call. Overwrites every column of `d_props`.
   void backward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t, const Buffer<float>& delta,
-                const nn::BatchMatrix& props, const Buffer<float>& dirs, const Buffer<float>& sh_basis,
+                const nn::BatchMatrix& props, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis,
                 const nn::BatchMatrix& radiance, const Buffer<float>& color, const Buffer<float>& d_color,
                 nn::BatchMatrix& d_radiance, nn::BatchMatrix& d_props) const;
 
  private:
-  void check(std::uint32_t n_rays, const nn::BatchMatrix& props, const char* what) const;
+  void check(std::uint32_t n_rays, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
+             const nn::BatchMatrix& sh_basis, const char* what) const;
   Device m_device;
   RendererSettings m_settings;
   std::uint32_t m_n_sh;
   Defines m_defines;
+};
+
+/// The K directions of the indirect-light sum, uniform on the sphere and drawn anew per iteration from
+/// (seed, iteration) on the device, and their SH basis values, computed once and shared by the whole batch
+/// (seed appendix B).
+class IndirectBasis {
+ public:
+  IndirectBasis(const Device& device, std::uint32_t n_dirs, int sh_lmax);
+  /// Draws the directions of `iteration` and evaluates the basis; enqueued only.
+  void draw(std::uint32_t seed, std::uint32_t iteration);
+  const nn::BatchMatrix& dirs() const { return m_dirs; }
+  const nn::BatchMatrix& basis() const { return m_basis; }
+
+ private:
+  Device m_device;
+  nn::BatchMatrix m_dirs, m_basis;
+  std::unique_ptr<nn::Encoding> m_sh;
 };
 
 }  // namespace relit::render
