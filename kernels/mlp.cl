@@ -135,8 +135,9 @@ inline float16 hidden_act(float16 z) {
 
 // ---------------------------------------------------------------------------------------------------------
 // Forward. One work-item = one tile of 16 samples; all layers in registers/private memory. With save != 0
-// the hidden activations h_l (after the activation) are also written to `act` (layer l at
-// act + l * padded * WIDTH, tiled) for the backward pass.
+// the training workspace `act` (feature-major: row f holds feature f of every sample, rows `padded` floats
+// apart) receives the rows [x (N_IN), ones, h_0 (WIDTH), ..., h_(N_HIDDEN-1)], h_l after the activation: the
+// backward pass reads h_l, and the weight-gradient kernel streams every row contiguously over the batch.
 // ---------------------------------------------------------------------------------------------------------
 
 #define SRC_X(k) vload16(0, xt + (k) * TILE)
@@ -209,8 +210,7 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 
 // ---------------------------------------------------------------------------------------------------------
 // Backward through the activations: dZ_l = dL/d(pre-activation of layer l) for every layer, written to `dz`
-// (hidden layer l at dz + l * padded * WIDTH, the output layer at dz + N_HIDDEN * padded * WIDTH with N_OUT
-// columns), and dL/dx into `dx` when want_dx. Lanes of samples >= batch get zero gradients, so the weight
+// (feature-major like `act`: rows [dZ_0 (WIDTH), ..., dZ_(N_HIDDEN-1), dZ_out (N_OUT)]), and dL/dx into `dx` when want_dx. Lanes of samples >= batch get zero gradients, so the weight
 // gradients never see the padding rows whatever d_output holds there.
 // ---------------------------------------------------------------------------------------------------------
 
@@ -313,7 +313,7 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
 //               act + (x_row + k - a_n) * padded for the x_n remaining columns (x rows and/or the ones row).
 //
 // One work-item = one chunk x DW_ROWS rows of dW. It walks its chunk in sub-chunks of `sub` samples (sized by
-// the host so the sub-chunk's input rows stay in a core's L2); per sub-chunk it computes every DW_RJ x DW_RK
+// the host so the sub-chunk's input rows stay in cache); per sub-chunk it computes every DW_RJ x DW_RK
 // register block of its rows: float8 accumulators whose lanes are samples,
 //
 //   acc[i][r] += dz[j0 + i][s .. s+7] * in[k0 + r][s .. s+7]          (DW_RJ + DW_RK loads, DW_RJ*DW_RK FMAs)

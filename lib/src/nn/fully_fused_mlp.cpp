@@ -27,9 +27,11 @@ constexpr std::uint32_t kWeightGradRegion = 4 * kWeightGradRows;  // rows of dW 
 
 // Weight-gradient partials: the batch is cut into a few chunks per compute unit (load balance; the partial
 // buffer is chunks x parameters, kept under kMaxPartialFloats), each walked in sub-chunks whose input rows
-// stay in a core's L2 (kSubChunkBytes) while every register block of the work-item's rows reads them.
+// (kSubChunkBytes) stay in a core's L2 + its share of L3 while every register block of the work-item's rows
+// reads them. Longer sub-chunks amortise the horizontal sums of the register blocks; on the 2-core AVX2
+// machine 1 MB beat 256 KB at width 256 and tied at width 64 (docs/networks.md).
 constexpr std::size_t kChunksPerComputeUnit = 8;
-constexpr std::size_t kSubChunkBytes = 256 * 1024;
+constexpr std::size_t kSubChunkBytes = 1024 * 1024;
 constexpr std::size_t kMinSubChunk = 128, kMaxSubChunk = 2048;  // samples
 constexpr std::size_t kMaxPartialFloats = std::size_t(1) << 23;
 
