@@ -64,6 +64,8 @@
 #define ACT_TANH 4
 
 #define TILE 16
+// Rows of the training workspace's `act` buffer (feature-major, see the forward kernel): x, ones, h_0, h_1, ...
+#define ACT_H0 (N_IN + 1)
 #define GMAX (WIDTH > N_OUT ? WIDTH : N_OUT)
 
 __constant uchar k_out_act[N_OUT] = {OUT_ACTS};
@@ -133,8 +135,9 @@ inline float16 hidden_act(float16 z) {
 
 // ---------------------------------------------------------------------------------------------------------
 // Forward. One work-item = one tile of 16 samples; all layers in registers/private memory. With save != 0
-// the hidden activations h_l (after the activation) are also written to `act` (layer l at
-// act + l * padded * WIDTH, tiled) for the backward pass.
+// the training workspace `act` (feature-major: row f holds feature f of every sample, rows `padded` floats
+// apart) receives the rows [x (N_IN), ones, h_0 (WIDTH), ..., h_(N_HIDDEN-1)], h_l after the activation: the
+// backward pass reads h_l, and the weight-gradient kernel streams every row contiguously over the batch.
 // ---------------------------------------------------------------------------------------------------------
 
 #define SRC_X(k) vload16(0, xt + (k) * TILE)
@@ -154,7 +157,7 @@ inline float16 hidden_act(float16 z) {
     _Pragma("unroll") for (uint r = 0; r < (NR); ++r) {                                        \
       const float16 y = hidden_act(acc[r]);                                                    \
       hout[(j0) + r] = y;                                                                      \
-      if (save) vstore16(y, 0, st + ((j0) + r) * TILE);                                        \
+      if (save) vstore16(y, 0, st + ((j0) + r) * (size_t)padded);                              \
     }                                                                                          \
   }
 
@@ -176,6 +179,10 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
   __global const float* xt = x + t * (size_t)(N_IN * TILE);
   __global float* yt = y + t * (size_t)(N_OUT * TILE);
 
+  if (save) {  // the weight gradients' inputs of layer 0 (and skips): x and the bias column of ones
+    for (uint k = 0; k < N_IN; ++k) vstore16(vload16(0, xt + k * TILE), 0, act + (size_t)k * padded + t * TILE);
+    vstore16((float16)1.0f, 0, act + (size_t)N_IN * padded + t * TILE);
+  }
   float16 h[2][WIDTH];
   for (uint l = 0; l < N_HIDDEN; ++l) {
     const uint skip = (((uint)(SKIP_MASK)) >> l) & 1u;
@@ -184,7 +191,7 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
     __global const float* w = p + layer_offset(l);
     __private float16* hin = h[(l + 1) & 1];
     __private float16* hout = h[l & 1];
-    __global float* st = save ? act + (size_t)l * padded * WIDTH + t * (size_t)(WIDTH * TILE) : act;
+    __global float* st = act + (size_t)(ACT_H0 + l * WIDTH) * padded + t * TILE;
     for (uint j0 = 0; j0 + FWD_R <= WIDTH; j0 += FWD_R) HIDDEN_BLOCK(FWD_R, j0)
 #if WIDTH % FWD_R
     HIDDEN_BLOCK(WIDTH % FWD_R, WIDTH - WIDTH % FWD_R)
@@ -203,8 +210,7 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 
 // ---------------------------------------------------------------------------------------------------------
 // Backward through the activations: dZ_l = dL/d(pre-activation of layer l) for every layer, written to `dz`
-// (hidden layer l at dz + l * padded * WIDTH, the output layer at dz + N_HIDDEN * padded * WIDTH with N_OUT
-// columns), and dL/dx into `dx` when want_dx. Lanes of samples >= batch get zero gradients, so the weight
+// (feature-major like `act`: rows [dZ_0 (WIDTH), ..., dZ_(N_HIDDEN-1), dZ_out (N_OUT)]), and dL/dx into `dx` when want_dx. Lanes of samples >= batch get zero gradients, so the weight
 // gradients never see the padding rows whatever d_output holds there.
 // ---------------------------------------------------------------------------------------------------------
 
@@ -218,9 +224,9 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
     ACCUM_T(acc, NR, SRC_G, nout, w, stride, k0)                                               \
     _Pragma("unroll") for (uint r = 0; r < (NR); ++r) {                                        \
       float16 g = acc[r];                                                                      \
-      if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, vload16(0, at + ((k0) + r) * TILE) > 0.0f); \
+      if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, vload16(0, at + ((k0) + r) * (size_t)padded) > 0.0f); \
       gout[(k0) + r] = g;                                                                      \
-      vstore16(g, 0, dzt + ((k0) + r) * TILE);                                                 \
+      vstore16(g, 0, dzt + ((k0) + r) * (size_t)padded);                                       \
     }                                                                                          \
   }
 
@@ -264,12 +270,12 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
   {  // dZ of the output layer.
     __global const float* yt = y + t * (size_t)(N_OUT * TILE);
     __global const float* dyt = dy + t * (size_t)(N_OUT * TILE);
-    __global float* dzt = dz + (size_t)N_HIDDEN * padded * WIDTH + t * (size_t)(N_OUT * TILE);
+    __global float* dzt = dz + (size_t)N_HIDDEN * padded * WIDTH + t * TILE;
     for (uint j = 0; j < N_OUT; ++j) {
       const float16 d = vload16(0, dyt + j * TILE) * act_grad(vload16(0, yt + j * TILE), k_out_act[j]);
       const float16 dm = select((float16)0.0f, d, valid);
       g[N_HIDDEN & 1][j] = dm;
-      vstore16(dm, 0, dzt + j * TILE);
+      vstore16(dm, 0, dzt + j * (size_t)padded);
     }
   }
   __global float* dxt = dx + t * (size_t)(N_IN * TILE);
@@ -279,8 +285,8 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
     __global const float* w = p + layer_offset(l);
     __private const float16* gin = g[l & 1];
     __private float16* gout = g[(l + 1) & 1];
-    __global const float* at = act + (size_t)(l - 1) * padded * WIDTH + t * (size_t)(WIDTH * TILE);
-    __global float* dzt = dz + (size_t)(l - 1) * padded * WIDTH + t * (size_t)(WIDTH * TILE);
+    __global const float* at = act + (size_t)(ACT_H0 + (l - 1) * WIDTH) * padded + t * TILE;
+    __global float* dzt = dz + (size_t)(l - 1) * WIDTH * padded + t * TILE;
     if (want_dx && ((((uint)(SKIP_MASK)) >> l) & 1u)) {
       const uint xcol = WIDTH;
       BACK_INPUT(l == TOP_SKIP)
@@ -299,76 +305,72 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// Weight gradients of one layer: partial[c][off + j * n_in + k] = sum over the tiles of chunk c of
-// sum_s dZ[s][j] * in[s][k], where in = [a (a_n columns), x (x_n columns), 1 (the bias column)];
-// dz and a start at dz_off and a_off (the layer's region of the workspace).
+// Weight gradients of one layer: partial[c][layer_off + j * n_in + k] = sum over the samples of chunk c of
+// dZ[j][s] * in[k][s]. The training workspace is feature-major (row f holds feature f of every sample, rows
+// `padded` floats apart), so every operand is a contiguous stream over the batch:
+//   dz rows j:  dz + (dz_row + j) * padded
+//   in rows k:  act + (a_row + k) * padded for k < a_n (the layer's input activations), then
+//               act + (x_row + k - a_n) * padded for the x_n remaining columns (x rows and/or the ones row).
 //
-// One work-item = one chunk x DW_ROWS rows of dW. It walks its chunk in sub-chunks of `sub_tiles` tiles
-// (sized by the host to stay in L2); for each sub-chunk it computes every DW_RJ x DW_RK register block of
-// its rows (float8 accumulators, lanes = samples) and adds the lane sums into its partial rows. The
-// sub-chunk's dZ rows stay in L1 and its inputs in L2 while they are reused by all blocks. Partial sums go
-// to per-chunk slots: no atomics, and the reduction below adds chunks in a fixed order (bit-for-bit
-// reproducible).
+// One work-item = one chunk x DW_ROWS rows of dW. It walks its chunk in sub-chunks of `sub` samples (sized by
+// the host so the sub-chunk's input rows stay in cache); per sub-chunk it computes every DW_RJ x DW_RK
+// register block of its rows: float8 accumulators whose lanes are samples,
+//
+//   acc[i][r] += dz[j0 + i][s .. s+7] * in[k0 + r][s .. s+7]          (DW_RJ + DW_RK loads, DW_RJ*DW_RK FMAs)
+//
+// and adds the lane sums into its partial rows. Partial sums go to per-chunk slots: no atomics, and the
+// reduction below adds chunks in a fixed order (bit-for-bit reproducible).
 // ---------------------------------------------------------------------------------------------------------
 #ifndef DW_ROWS
 #define DW_ROWS (4 * DW_RJ)
 #endif
 
-__kernel void mlp_weight_grad_partial(const uint n_tiles, const uint tiles_per_chunk, const uint n_chunks,
-                                      const uint sub_tiles, __global const float* restrict dz, const uint n_out,
-                                      __global const float* restrict a, const uint a_cols, const uint a_n,
-                                      __global const float* restrict x, const uint x_cols, const uint x_n,
-                                      const uint bias, __global const float* restrict ones,
+__kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len, const uint n_chunks,
+                                      const uint sub, const uint padded, __global const float* restrict dz,
+                                      const uint dz_row, const uint n_out, __global const float* restrict act,
+                                      const uint a_row, const uint a_n, const uint x_row, const uint x_n,
                                       __global float* restrict partial, const uint partial_stride,
-                                      const uint layer_off, const uint dz_off, const uint a_off) {
-  dz += dz_off;
-  a += a_off;
-  const uint n_in = a_n + x_n + bias;
+                                      const uint layer_off) {
+  const uint n_in = a_n + x_n;
   const uint regions = (n_out + DW_ROWS - 1) / DW_ROWS;
   const size_t gid = get_global_id(0);
   if (gid >= (size_t)n_chunks * regions) return;
   const uint c = gid / regions;
   const uint jr0 = (gid % regions) * DW_ROWS, jr1 = min(jr0 + DW_ROWS, n_out);
-  const uint t0 = c * tiles_per_chunk, t1 = min(t0 + tiles_per_chunk, n_tiles);
+  const uint s0 = c * chunk_len, s1 = min(s0 + chunk_len, n_samples);
   __global float* out = partial + (size_t)c * partial_stride + layer_off;
-  const size_t dzstep = (size_t)n_out * TILE;
+  __global const float* dzl = dz + (size_t)dz_row * padded;
 
-  for (uint ts = t0; ts < t1; ts += sub_tiles) {
-    const uint te = min(ts + sub_tiles, t1);
-    const bool first = ts == t0;
+  for (uint ss = s0; ss < s1; ss += sub) {
+    const uint se = min(ss + sub, s1);
+    const bool first = ss == s0;
     for (uint j0 = jr0; j0 < jr1; j0 += DW_RJ) {
-      // Rows past the end repeat the last row, columns past the end read the ones: no branches in the
-      // inner loop; those results are not stored.
+      // Rows and columns past the end repeat the last one: no branches in the inner loop; those results are
+      // not stored.
       __global const float* dzp[DW_RJ];
 #pragma unroll
-      for (uint i = 0; i < DW_RJ; ++i) dzp[i] = dz + min(j0 + i, n_out - 1) * TILE;
+      for (uint i = 0; i < DW_RJ; ++i) dzp[i] = dzl + (size_t)min(j0 + i, jr1 - 1) * padded;
       for (uint k0 = 0; k0 < n_in; k0 += DW_RK) {
         __global const float* inp[DW_RK];
-        size_t instep[DW_RK];
 #pragma unroll
         for (uint r = 0; r < DW_RK; ++r) {
-          const uint k = k0 + r;
-          if (k < a_n) { inp[r] = a + k * TILE; instep[r] = (size_t)a_cols * TILE; }
-          else if (k < a_n + x_n) { inp[r] = x + (k - a_n) * TILE; instep[r] = (size_t)x_cols * TILE; }
-          else { inp[r] = ones; instep[r] = 0; }
+          const uint k = min(k0 + r, n_in - 1);
+          inp[r] = act + (size_t)(k < a_n ? a_row + k : x_row + (k - a_n)) * padded;
         }
         float8 acc[DW_RJ][DW_RK];
 #pragma unroll
         for (uint i = 0; i < DW_RJ; ++i)
 #pragma unroll
           for (uint r = 0; r < DW_RK; ++r) acc[i][r] = (float8)0.0f;
-        for (uint t = ts; t < te; ++t) {
+        for (uint s = ss; s < se; s += 8) {
+          float8 xv[DW_RK];
 #pragma unroll
-          for (uint h = 0; h < 2; ++h) {
-            float8 xv[DW_RK];
+          for (uint r = 0; r < DW_RK; ++r) xv[r] = vload8(0, inp[r] + s);
 #pragma unroll
-            for (uint r = 0; r < DW_RK; ++r) xv[r] = ((__global const float8*)(inp[r] + t * instep[r]))[h];
+          for (uint i = 0; i < DW_RJ; ++i) {
+            const float8 d = vload8(0, dzp[i] + s);
 #pragma unroll
-            for (uint i = 0; i < DW_RJ; ++i) {
-              const float8 d = ((__global const float8*)(dzp[i] + t * dzstep))[h];
-#pragma unroll
-              for (uint r = 0; r < DW_RK; ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);
-            }
+            for (uint r = 0; r < DW_RK; ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);
           }
         }
 #pragma unroll

@@ -26,10 +26,13 @@ constexpr std::uint32_t kWeightGradRows = 4, kWeightGradCols = 3;
 constexpr std::uint32_t kWeightGradRegion = 4 * kWeightGradRows;  // rows of dW per work-item (DW_ROWS)
 
 // Weight-gradient partials: the batch is cut into a few chunks per compute unit (load balance; the partial
-// buffer is chunks x parameters, kept under kMaxPartialFloats), each walked in sub-chunks whose inputs stay
-// in a core's L2 (kSubChunkBytes) while every register block of the work-item's rows reads them.
+// buffer is chunks x parameters, kept under kMaxPartialFloats), each walked in sub-chunks whose input rows
+// (kSubChunkBytes) stay in a core's L2 + its share of L3 while every register block of the work-item's rows
+// reads them. Longer sub-chunks amortise the horizontal sums of the register blocks; on the 2-core AVX2
+// machine 1 MB beat 256 KB at width 256 and tied at width 64 (docs/networks.md).
 constexpr std::size_t kChunksPerComputeUnit = 8;
-constexpr std::size_t kSubChunkBytes = 256 * 1024;
+constexpr std::size_t kSubChunkBytes = 1024 * 1024;
+constexpr std::size_t kMinSubChunk = 128, kMaxSubChunk = 2048;  // samples
 constexpr std::size_t kMaxPartialFloats = std::size_t(1) << 23;
 
 // splitmix64: a fixed, portable generator (std:: distributions differ between standard libraries).
@@ -45,7 +48,7 @@ struct SplitMix {
 };
 
 struct ChunkPlan {
-  std::uint32_t n_tiles = 0, tiles_per_chunk = 1, n_chunks = 1, sub_tiles = 1;
+  std::uint32_t n_samples = 0, chunk_len = 1, n_chunks = 1, sub = 1;  // samples, multiples of kBatchTile
 };
 
 class MlpWorkspace final : public Workspace {
@@ -53,7 +56,9 @@ class MlpWorkspace final : public Workspace {
   explicit MlpWorkspace(Device device) : device(std::move(device)) {}
   Device device;
   std::uint32_t padded = 0;          // batch capacity of act/dz
-  Buffer<float> act, dz, partial, ones;
+  // Feature-major (row f = feature f of every sample, `padded` floats per row): act holds the rows
+  // [x (n_input), ones, h_0 (width), ..., h_(L-1)], dz the rows [dZ_0 (width), ..., dZ_(L-1), dZ_out].
+  Buffer<float> act, dz, partial;
 };
 
 }  // namespace
@@ -257,7 +262,7 @@ void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const 
                           "for this device");
   if (input.padded() > ws->padded) {  // grow only: a training loop reuses its buffers
     ws->padded = input.padded();
-    ws->act = Buffer<float>(device, std::size_t(ws->padded) * m_width * m_n_hidden);
+    ws->act = Buffer<float>(device, std::size_t(ws->padded) * (std::size_t(m_width) * m_n_hidden + m_n_input + 1));
     ws->dz = Buffer<float>(device, std::size_t(ws->padded) * (std::size_t(m_width) * m_n_hidden + m_n_output));
   }
   launch_forward(device, params, input, output, &ws->act, ws->padded);
@@ -298,20 +303,17 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
   std::uint32_t max_in = 0;
   for (std::uint32_t l = 0; l <= m_n_hidden; ++l) max_in = std::max(max_in, layer_inputs(l) + 1);
   ChunkPlan plan;
-  plan.n_tiles = n_tiles;
+  plan.n_samples = n_tiles * kBatchTile;
   const std::size_t budget = std::max<std::size_t>(1, kMaxPartialFloats / np);
   const std::size_t wanted = kChunksPerComputeUnit * std::max(1u, device.info().compute_units);
   const std::size_t chunks = std::clamp<std::size_t>(std::min(wanted, budget), 1, n_tiles);
-  plan.tiles_per_chunk = static_cast<std::uint32_t>((n_tiles + chunks - 1) / chunks);
-  plan.n_chunks = (n_tiles + plan.tiles_per_chunk - 1) / plan.tiles_per_chunk;
-  plan.sub_tiles = static_cast<std::uint32_t>(
-      std::clamp<std::size_t>(kSubChunkBytes / (std::size_t(max_in) * kBatchTile * sizeof(float)), 4, 64));
+  plan.chunk_len = static_cast<std::uint32_t>((n_tiles + chunks - 1) / chunks) * kBatchTile;
+  plan.n_chunks = (plan.n_samples + plan.chunk_len - 1) / plan.chunk_len;
+  plan.sub = static_cast<std::uint32_t>(
+      std::clamp<std::size_t>(kSubChunkBytes / (std::size_t(max_in) * sizeof(float)), kMinSubChunk, kMaxSubChunk) /
+      kBatchTile * kBatchTile);
   if (ws->partial.size() < std::size_t(plan.n_chunks) * np)
     ws->partial = Buffer<float>(device, std::size_t(plan.n_chunks) * np);
-  if (ws->ones.empty()) {
-    ws->ones = Buffer<float>(device, kBatchTile);
-    ws->ones.fill(1.0f);
-  }
 
   // 1. dZ of every layer (and dL/dx), one work-item per tile.
   Kernel bk = k.backward;
@@ -325,14 +327,12 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
   for (std::uint32_t l = 0; l <= m_n_hidden; ++l) {
     const std::uint32_t n_out = layer_outputs(l);
     const std::uint32_t a_n = l == 0 ? 0 : m_width;
-    const std::uint32_t x_n = l == 0 || has_skip(l) ? m_n_input : 0;
     const std::uint32_t regions = (n_out + kWeightGradRegion - 1) / kWeightGradRegion;
-    // Hidden layer l's dZ and the activations feeding layer l (h_(l-1)), at their offsets in the workspace.
-    const std::size_t dz_off = std::size_t(l) * ws->padded * m_width;
-    const std::size_t a_off = l == 0 ? 0 : std::size_t(l - 1) * ws->padded * m_width;
-    wk.args(n_tiles, plan.tiles_per_chunk, plan.n_chunks, plan.sub_tiles, ws->dz, n_out, ws->act, m_width, a_n,
-            input.data(), m_n_input, x_n, static_cast<std::uint32_t>(m_bias ? 1 : 0), ws->ones, ws->partial, np,
-            layer_offset(l), static_cast<std::uint32_t>(dz_off), static_cast<std::uint32_t>(a_off));
+    const std::uint32_t x_row = l == 0 || has_skip(l) ? 0 : m_n_input;  // x rows then the ones row
+    const std::uint32_t x_n = (l == 0 || has_skip(l) ? m_n_input : 0) + (m_bias ? 1 : 0);
+    wk.args(plan.n_samples, plan.chunk_len, plan.n_chunks, plan.sub, ws->padded, ws->dz, l * m_width, n_out,
+            ws->act, l == 0 ? 0u : m_n_input + 1 + (l - 1) * m_width, a_n, x_row, x_n, ws->partial, np,
+            layer_offset(l));
     // Few, long work-items: keep at least ~4 work-groups per compute unit for load balance.
     const std::size_t items = std::size_t(plan.n_chunks) * regions;
     std::size_t local = k.local_weight_grad;
