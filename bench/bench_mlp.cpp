@@ -6,7 +6,7 @@
 //
 // FLOPs: 2 per multiply-add; forward = 2 * sum(in * out) per sample; training step = 3 x forward
 // (forward + dL/dinput + dL/dweights). Timings are medians over --reps runs, each ended by clFinish.
-#include "mlp_reference.hpp"
+#include "mlp_reference.hpp"  // tests/support
 
 #include <relit/cl/program.hpp>
 #include <relit/nn/fully_fused_mlp.hpp>
@@ -308,12 +308,15 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
   const auto dyh = random_vector(std::size_t(n) * spec.n_out, 4, -1e-3f, 1e-3f);
 
   // Reference on the verification batch (the first nv samples).
-  bench::MlpReference ref(net, params);
+  reference::MlpReference ref(net, params);
   const std::vector<float> xv(xh.begin(), xh.begin() + std::size_t(nv) * spec.n_in);
   const std::vector<float> dyv(dyh.begin(), dyh.begin() + std::size_t(nv) * spec.n_out);
-  const auto want_y = ref.forward(xv, nv);
-  std::vector<double> want_dp, want_dx;
-  ref.backward(dyv, want_dp, want_dx);
+  const reference::Mat xm = reference::to_mat(xv, nv, spec.n_in);
+  const auto want_y = reference::flatten(ref.forward(xm));
+  std::vector<double> want_dp;
+  reference::Mat dxm;
+  ref.backward(xm, reference::to_mat(dyv, nv, spec.n_out), want_dp, dxm);
+  const auto want_dx = reference::flatten(dxm);
 
   Buffer<float> pbuf(device, params), gbuf(device, params.size());
   // ---- fused ----
@@ -329,9 +332,9 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
     net.backward(device, {&pbuf, 0}, x, y, dy, {&gbuf, 0}, false, &dx, *ws);
     device.finish();
     t.first_call_s = seconds_since(t0);
-    verify("fused forward", bench::worst_ratio(y.download_row_major(), want_y, 1e-4));
-    verify("fused dL/dparams", bench::worst_ratio(gbuf.read(), want_dp, 1e-3));
-    verify("fused dL/dinput", bench::worst_ratio(dx.download_row_major(), want_dx, 1e-3));
+    verify("fused forward", reference::worst_ratio(y.download_row_major(), want_y, 1e-4));
+    verify("fused dL/dparams", reference::worst_ratio(gbuf.read(), want_dp, 1e-3));
+    verify("fused dL/dinput", reference::worst_ratio(dx.download_row_major(), want_dx, 1e-3));
     x.resize(n);
     y.resize(n);
     dy.resize(n);
@@ -342,7 +345,7 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
     device.finish();
     auto yfull = y.download_row_major();
     yfull.resize(want_y.size());
-    verify("fused inference at full batch (first samples)", bench::worst_ratio(yfull, want_y, 1e-4));
+    verify("fused inference at full batch (first samples)", reference::worst_ratio(yfull, want_y, 1e-4));
     t.forward_s = median_time(o.reps, [&] {
       net.inference(device, {&pbuf, 0}, x, y);
       device.finish();
@@ -372,9 +375,9 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
       const auto y = e.forward(x);
       e.backward(x, dy, grads, dx);
       t.first_call_s = seconds_since(t0);
-      verify("eigen forward", bench::worst_ratio(to_row_major_batch(y), want_y, 1e-4));
-      verify("eigen dL/dparams", bench::worst_ratio(grads, want_dp, 1e-3));
-      verify("eigen dL/dinput", bench::worst_ratio(to_row_major_batch(dx), want_dx, 1e-3));
+      verify("eigen forward", reference::worst_ratio(to_row_major_batch(y), want_y, 1e-4));
+      verify("eigen dL/dparams", reference::worst_ratio(grads, want_dp, 1e-3));
+      verify("eigen dL/dinput", reference::worst_ratio(to_row_major_batch(dx), want_dx, 1e-3));
     }
     const auto x = to_cols(xh, n, spec.n_in), dy = to_cols(dyh, n, spec.n_out);
     t.forward_s = median_time(o.reps, [&] { e.forward(x); });
@@ -395,9 +398,9 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
       c.backward(pbuf, x, dy, gbuf, dx);
       device.finish();
       t.first_call_s = seconds_since(t0);
-      verify("clblast forward", bench::worst_ratio(y.read(), want_y, 1e-4));
-      verify("clblast dL/dparams", bench::worst_ratio(gbuf.read(), want_dp, 1e-3));
-      verify("clblast dL/dinput", bench::worst_ratio(dx.read(), want_dx, 1e-3));
+      verify("clblast forward", reference::worst_ratio(y.read(), want_y, 1e-4));
+      verify("clblast dL/dparams", reference::worst_ratio(gbuf.read(), want_dp, 1e-3));
+      verify("clblast dL/dinput", reference::worst_ratio(dx.read(), want_dx, 1e-3));
     }
     ClblastMLP c(device, net, n);
     Buffer<float> x(device, xh), dy(device, dyh), dx(device, std::size_t(n) * spec.n_in);
