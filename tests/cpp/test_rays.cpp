@@ -8,6 +8,8 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+
+#include <cmath>
 #include <set>
 
 namespace relit {
@@ -15,27 +17,18 @@ namespace relit {
 using render::kRayFloats;
 
 namespace {
-// A camera at `eye` looking at the origin, +z up in the world, as a row-major camera-to-world matrix.
-std::array<float, 16> look_at(const Eigen::Vector3d& eye) {
-  const Eigen::Vector3d back = eye.normalized();  // camera +z points away from the target
-  const Eigen::Vector3d right = Eigen::Vector3d::UnitZ().cross(back).normalized();
-  const Eigen::Vector3d up = back.cross(right);
-  std::array<float, 16> m{};
-  for (int r = 0; r < 3; ++r) {
-    m[r * 4 + 0] = float(right[r]);
-    m[r * 4 + 1] = float(up[r]);
-    m[r * 4 + 2] = float(back[r]);
-    m[r * 4 + 3] = float(eye[r]);
-  }
-  m[15] = 1;
-  return m;
+// A camera at `eye` looking at the origin with +z up.
+Camera camera_at(const Eigen::Vector3d& eye, float fov, int w, int h) {
+  return Camera::look_at({float(eye.x()), float(eye.y()), float(eye.z())}, {0, 0, 0}, {0, 0, 1}, fov, w, h);
 }
 
-Eigen::Vector3d reference_dir(const render::PinholeCamera& c, double px, double py) {
-  const Eigen::Vector3d local((px - c.cx) / c.fx, -(py - c.cy) / c.fy, -1);
+// An independent pinhole model: direction through pixel position (px, py).
+Eigen::Vector3d reference_dir(const Camera& c, double px, double py) {
+  const double f = 0.5 * c.width / std::tan(0.5 * c.camera_angle_x);
+  const Eigen::Vector3d local((px - 0.5 * c.width) / f, -(py - 0.5 * c.height) / f, -1);
   Eigen::Matrix3d R;
   for (int r = 0; r < 3; ++r)
-    for (int k = 0; k < 3; ++k) R(r, k) = c.camera_to_world[r * 4 + k];
+    for (int k = 0; k < 3; ++k) R(r, k) = c.transform[r][k];
   return (R * local).normalized();
 }
 }  // namespace
@@ -43,14 +36,18 @@ Eigen::Vector3d reference_dir(const render::PinholeCamera& c, double px, double 
 TEST(Rays, ImageRaysMatchThePinholeModel) {
   const Device d = test::test_device();
   const std::uint32_t w = 33, h = 21;
-  const auto cam = render::PinholeCamera::from_fov(look_at({3, -2, 1.5}), 0.7f, w, h);
-  const render::PointLightRecord light{{1, 2, 3}, {100, 200, 300}};
+  const Camera cam = camera_at({3, -2, 1.5}, 0.7f, w, h);
+  const PointLight light{{1, 2, 3}, {100, 200, 300}};
   Buffer<float> rays(d, w * h * kRayFloats);
-  render::image_rays(d, cam, light, w, 0, w * h, rays);
+  render::image_rays(d, cam, light, 0, w * h, rays);
   const auto r = rays.read();
   for (std::uint32_t p = 0; p < w * h; ++p) {
     const Eigen::Vector3d ref = reference_dir(cam, p % w + 0.5, p / w + 0.5);
-    for (int k = 0; k < 3; ++k) ASSERT_NEAR(r[p * kRayFloats + 4 + k], ref[k], 1e-6) << "pixel " << p;
+    const auto host = cam.direction(p % w + 0.5, p / w + 0.5);  // the scene's own camera model agrees
+    for (int k = 0; k < 3; ++k) {
+      ASSERT_NEAR(r[p * kRayFloats + 4 + k], ref[k], 1e-6) << "pixel " << p;
+      ASSERT_NEAR(host[k], ref[k], 1e-6) << "pixel " << p;
+    }
     ASSERT_EQ(r[p * kRayFloats + 0], 3.0f);
     ASSERT_EQ(r[p * kRayFloats + 12], 100.0f);
     ASSERT_EQ(r[p * kRayFloats + 10], 3.0f);
@@ -60,7 +57,7 @@ TEST(Rays, ImageRaysMatchThePinholeModel) {
   const Eigen::Vector3d to_target = -Eigen::Vector3d(3, -2, 1.5).normalized();
   Eigen::Vector3d dc(r[centre * kRayFloats + 4], r[centre * kRayFloats + 5], r[centre * kRayFloats + 6]);
   EXPECT_NEAR(dc.dot(to_target), 1.0, 1e-6);
-  const double edge = std::atan((0.5 * w - 0.5) / cam.fx);
+  const double edge = std::atan((0.5 * w - 0.5) / cam.focal());
   const std::uint32_t left = (h / 2) * w;
   Eigen::Vector3d dl(r[left * kRayFloats + 4], r[left * kRayFloats + 5], r[left * kRayFloats + 6]);
   EXPECT_NEAR(std::acos(dl.dot(to_target)), edge, 1e-5);
@@ -69,15 +66,15 @@ TEST(Rays, ImageRaysMatchThePinholeModel) {
 TEST(Rays, TrainingBatchesLookUpTheirPixelsCoverAllImagesAndAreReproducible) {
   const Device d = test::test_device();
   const std::uint32_t w = 8, h = 6, n_images = 5, n_rays = 2000;
-  std::vector<render::PinholeCamera> cams;
-  std::vector<render::PointLightRecord> lights;
+  std::vector<Camera> cams;
+  std::vector<PointLight> lights;
   std::vector<float> images;
   for (std::uint32_t i = 0; i < n_images; ++i) {
-    cams.push_back(render::PinholeCamera::from_fov(look_at({4.0 * std::cos(i), 4.0 * std::sin(i), 1}), 0.6f, w, h));
+    cams.push_back(camera_at({4.0 * std::cos(i), 4.0 * std::sin(i), 1}, 0.6f, w, h));
     lights.push_back({{float(i), 0, 5}, {float(10 * i), 1, 2}});
     for (std::uint32_t p = 0; p < w * h * 3; ++p) images.push_back(float(i * 1000 + p));
   }
-  const render::RaySource source(d, w, h, cams, lights, images);
+  const render::RaySource source(d, cams, lights, images);
   Buffer<float> rays(d, n_rays * kRayFloats), targets(d, 3 * n_rays), rays2(d, n_rays * kRayFloats), t2(d, 3 * n_rays);
   Buffer<std::uint32_t> ids(d, n_rays), ids2(d, n_rays);
   source.training_batch(n_rays, 7, 3, rays, targets, ids);
@@ -101,10 +98,15 @@ TEST(Rays, TrainingBatchesLookUpTheirPixelsCoverAllImagesAndAreReproducible) {
 
 TEST(Rays, BadInputsAreErrors) {
   const Device d = test::test_device();
-  EXPECT_THROW(render::PinholeCamera::from_fov(look_at({0, 4, 0}), 0.0f, 8, 8), InvalidArgument);
-  const auto cam = render::PinholeCamera::from_fov(look_at({0, 4, 0}), 0.5f, 4, 4);
-  EXPECT_THROW(render::RaySource(d, 4, 4, {cam}, {}, std::vector<float>(48)), InvalidArgument);
-  EXPECT_THROW(render::RaySource(d, 4, 4, {cam}, {render::PointLightRecord{}}, std::vector<float>(47)), InvalidArgument);
+  const Camera cam = camera_at({0, 4, 0}, 0.5f, 4, 4);
+  EXPECT_THROW(render::RaySource(d, {cam}, {}, std::vector<float>(48)), InvalidArgument);
+  EXPECT_THROW(render::RaySource(d, {cam}, {PointLight{}}, std::vector<float>(47)), InvalidArgument);
+  EXPECT_THROW(render::RaySource(d, {cam, camera_at({0, 4, 0}, 0.5f, 5, 4)}, {PointLight{}, PointLight{}},
+                                 std::vector<float>(96)),
+               InvalidArgument);
+  PointLight negative;
+  negative.intensity = {-1, 0, 0};
+  EXPECT_THROW(render::RaySource(d, {cam}, {negative}, std::vector<float>(48)), Error);
 }
 
 }  // namespace relit

@@ -3,57 +3,56 @@
 #include <relit/render/rays.hpp>
 #include <relit/render/volume_renderer.hpp>
 
-#include <cmath>
 
 namespace relit::render {
 
-PinholeCamera PinholeCamera::from_fov(const std::array<float, 16>& c2w, float fov_x, std::uint32_t width,
-                                      std::uint32_t height) {
-  if (!(fov_x > 0.0f && fov_x < 3.14159f)) throw InvalidArgument("field of view must be in (0, pi) radians");
-  if (width == 0 || height == 0) throw InvalidArgument("camera resolution must be positive");
-  PinholeCamera c;
-  c.camera_to_world = c2w;
-  c.fx = c.fy = 0.5f * width / std::tan(0.5f * fov_x);
-  c.cx = 0.5f * width;
-  c.cy = 0.5f * height;
-  return c;
-}
-
-std::array<float, 16> PinholeCamera::record() const {
+std::array<float, 16> camera_record(const Camera& camera) {
+  camera.validate();
   std::array<float, 16> r{};
-  for (int i = 0; i < 12; ++i) r[i] = camera_to_world[i];
-  r[12] = fx;
-  r[13] = fy;
-  r[14] = cx;
-  r[15] = cy;
+  for (int row = 0; row < 3; ++row)
+    for (int col = 0; col < 4; ++col) r[row * 4 + col] = camera.transform[row][col];
+  r[12] = r[13] = camera.focal();
+  r[14] = 0.5f * camera.width;
+  r[15] = 0.5f * camera.height;
   return r;
 }
 
+std::array<float, 8> light_record(const PointLight& light) {
+  light.validate();
+  return {light.position[0], light.position[1], light.position[2], 0.0f,
+          light.intensity[0], light.intensity[1], light.intensity[2], 0.0f};
+}
+
 namespace {
-template <class T, std::size_t N>
-std::vector<float> flatten(const std::vector<T>& items) {
+template <class T, class Record>
+std::vector<float> flatten(const std::vector<T>& items, Record record) {
   std::vector<float> out;
   for (const auto& i : items) {
-    const std::array<float, N> r = i.record();
+    const auto r = record(i);
     out.insert(out.end(), r.begin(), r.end());
   }
   return out;
 }
 }  // namespace
 
-RaySource::RaySource(const Device& device, std::uint32_t width, std::uint32_t height,
-                     const std::vector<PinholeCamera>& cameras, const std::vector<PointLightRecord>& lights,
+RaySource::RaySource(const Device& device, const std::vector<Camera>& cameras, const std::vector<PointLight>& lights,
                      const std::vector<float>& images)
-    : m_device(device), m_width(width), m_height(height), m_n_images(static_cast<std::uint32_t>(cameras.size())) {
+    : m_device(device), m_n_images(static_cast<std::uint32_t>(cameras.size())) {
   if (cameras.empty() || lights.size() != cameras.size())
     throw InvalidArgument("RaySource: need one light per camera and at least one image (got " +
                           std::to_string(cameras.size()) + " cameras, " + std::to_string(lights.size()) + " lights)");
+  m_width = static_cast<std::uint32_t>(cameras[0].width);
+  m_height = static_cast<std::uint32_t>(cameras[0].height);
+  for (const auto& c : cameras)
+    if (c.width != cameras[0].width || c.height != cameras[0].height)
+      throw InvalidArgument("RaySource: all cameras must have the same resolution");
+  const std::uint32_t width = m_width, height = m_height;
   if (images.size() != std::size_t(m_n_images) * width * height * 3)
     throw InvalidArgument("RaySource: " + std::to_string(images.size()) + " image values for " +
                           std::to_string(m_n_images) + " RGB images of " + std::to_string(width) + "x" +
                           std::to_string(height));
-  m_cameras = Buffer<float>(device, flatten<PinholeCamera, 16>(cameras));
-  m_lights = Buffer<float>(device, flatten<PointLightRecord, 8>(lights));
+  m_cameras = Buffer<float>(device, flatten(cameras, camera_record));
+  m_lights = Buffer<float>(device, flatten(lights, light_record));
   m_images = Buffer<float>(device, images);
 }
 
@@ -67,11 +66,12 @@ void RaySource::training_batch(std::uint32_t n_rays, std::uint32_t seed, std::ui
       .launch(n_rays, 16);
 }
 
-void image_rays(const Device& device, const PinholeCamera& camera, const PointLightRecord& light, std::uint32_t width,
-                std::uint32_t first, std::uint32_t n_rays, Buffer<float>& rays) {
+void image_rays(const Device& device, const Camera& camera, const PointLight& light, std::uint32_t first,
+                std::uint32_t n_rays, Buffer<float>& rays) {
   if (rays.size() < std::size_t(n_rays) * kRayFloats) throw InvalidArgument("image_rays: ray buffer too small");
-  const auto c = camera.record();
-  const auto l = light.record();
+  const auto width = static_cast<std::uint32_t>(camera.width);
+  const auto c = camera_record(camera);
+  const auto l = light_record(light);
   Buffer<float> cam(device, std::vector<float>(c.begin(), c.end())), lig(device, std::vector<float>(l.begin(), l.end()));
   device.kernel("rays.cl", "image_rays").args(n_rays, first, width, cam, lig, rays).launch(n_rays, 16);
 }
