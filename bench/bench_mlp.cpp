@@ -180,10 +180,29 @@ class EigenMLP {
       const Mat& in = l == 0 ? x : m_h[l - 1];
       const std::uint32_t n_in = m_net.layer_inputs(l);
       GMap gw(grads.data() + m_net.layer_offset(l), m_net.layer_outputs(l), n_in, Eigen::OuterStride<>(n_in + 1));
-      gw.noalias() = dz * in.transpose();
       Eigen::Map<Eigen::VectorXf, 0, Eigen::InnerStride<>> gb(grads.data() + m_net.layer_offset(l) + n_in,
                                                               m_net.layer_outputs(l), Eigen::InnerStride<>(n_in + 1));
-      gb = dz.rowwise().sum();
+      // dW = dZ X^T sums over the long batch dimension, but Eigen parallelises a GEMM over output blocks only
+      // and a 64x64 dW is a single block: split the batch across the threads and add their partial products.
+      const int threads = omp_get_max_threads();
+      std::vector<Mat> part_w(threads);
+      std::vector<Eigen::VectorXf> part_b(threads);
+#pragma omp parallel num_threads(threads)
+      {
+        const int t = omp_get_thread_num();
+        const Eigen::Index chunk = (dz.cols() + threads - 1) / threads, s0 = std::min<Eigen::Index>(t * chunk, dz.cols());
+        const Eigen::Index n = std::min<Eigen::Index>(chunk, dz.cols() - s0);
+        part_w[t].noalias() = dz.middleCols(s0, n) * in.middleCols(s0, n).transpose();
+        part_b[t] = dz.middleCols(s0, n).rowwise().sum();
+      }
+      Mat sum_w = part_w[0];
+      Eigen::VectorXf sum_b = part_b[0];
+      for (int t = 1; t < threads; ++t) {
+        sum_w += part_w[t];
+        sum_b += part_b[t];
+      }
+      gw = sum_w;
+      gb = sum_b;
       if (l == 0) {
         dx.noalias() = w(0).transpose() * dz;
       } else {
