@@ -57,13 +57,7 @@ double median_time(int reps, const std::function<void()>& run) {
   return t[t.size() / 2];
 }
 
-std::vector<float> random_vector(std::size_t n, std::uint32_t seed, float lo = -1.0f, float hi = 1.0f) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(lo, hi);
-  std::vector<float> v(n);
-  for (auto& x : v) x = u(rng);
-  return v;
-}
+using reference::random_vector;
 
 int g_failures = 0;
 void verify(const std::string& what, double worst) {

@@ -52,6 +52,27 @@ inline float16 hg_dphase16_dg(float16 g, float16 mu) {
   return INV_4PI * r5 * (-2.0f * g * d - 3.0f * (1.0f - g * g) * (g + mu));
 }
 
+#if N_SH > 0
+// mu = w_o . w_k for indirect direction k (a tiled n_dirs x 3 matrix).
+inline float dir_cosine(float3 wo, __global const float* dirs, uint k) {
+  return wo.x * TILED(dirs, 3, k, 0) + wo.y * TILED(dirs, 3, k, 1) + wo.z * TILED(dirs, 3, k, 2);
+}
+
+// Each channel's SH expansion sum_j c_j Y_j(w_k), before the max(0, .) clamp.
+inline void sh_expand(const float16* c, __global const float* sh_basis, uint k, float16* lr, float16* lg, float16* lb) {
+  float16 r = 0.0f, g = 0.0f, b = 0.0f;
+  for (uint j = 0; j < N_SH; ++j) {
+    const float y = TILED(sh_basis, N_SH, k, j);
+    r = fma(c[j], y, r);
+    g = fma(c[N_SH + j], y, g);
+    b = fma(c[2 * N_SH + j], y, b);
+  }
+  *lr = r;
+  *lg = g;
+  *lb = b;
+}
+#endif
+
 // ---- sampling ---------------------------------------------------------------------------------------------
 
 // Intersects each ray with the box [-1, 1]^3, writes t_near/t_far into the ray record (0, 0 on a miss), and
@@ -142,15 +163,10 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
   for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
   float16 i_r = 0.0f, i_g = 0.0f, i_b = 0.0f;
   for (uint k = 0; k < N_DIRS; ++k) {
-    const float mu = L.wo.x * TILED(dirs, 3, k, 0) + L.wo.y * TILED(dirs, 3, k, 1) + L.wo.z * TILED(dirs, 3, k, 2);
+    const float mu = dir_cosine(L.wo, dirs, k);
     const float16 p = hg_phase16(L.g, (float16)(mu));
-    float16 lr = 0.0f, lg = 0.0f, lb = 0.0f;
-    for (uint j = 0; j < N_SH; ++j) {
-      const float y = TILED(sh_basis, N_SH, k, j);
-      lr = fma(c[j], y, lr);
-      lg = fma(c[N_SH + j], y, lg);
-      lb = fma(c[2 * N_SH + j], y, lb);
-    }
+    float16 lr, lg, lb;
+    sh_expand(c, sh_basis, k, &lr, &lg, &lb);
     i_r = fma(p, fmax(lr, 0.0f), i_r);
     i_g = fma(p, fmax(lg, 0.0f), i_g);
     i_b = fma(p, fmax(lb, 0.0f), i_b);
@@ -196,16 +212,11 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   const float w = 4.0f * M_PI_F / N_DIRS;
   float16 i_r = 0.0f, i_g = 0.0f, i_b = 0.0f;
   for (uint k = 0; k < N_DIRS; ++k) {
-    const float mu = L.wo.x * TILED(dirs, 3, k, 0) + L.wo.y * TILED(dirs, 3, k, 1) + L.wo.z * TILED(dirs, 3, k, 2);
+    const float mu = dir_cosine(L.wo, dirs, k);
     const float16 p = hg_phase16(L.g, (float16)(mu));
     const float16 dp = hg_dphase16_dg(L.g, (float16)(mu));
-    float16 lr = 0.0f, lg = 0.0f, lb = 0.0f;
-    for (uint j = 0; j < N_SH; ++j) {
-      const float y = TILED(sh_basis, N_SH, k, j);
-      lr = fma(c[j], y, lr);
-      lg = fma(c[N_SH + j], y, lg);
-      lb = fma(c[2 * N_SH + j], y, lb);
-    }
+    float16 lr, lg, lb;
+    sh_expand(c, sh_basis, k, &lr, &lg, &lb);
     const float16 pr = fmax(lr, 0.0f), pg = fmax(lg, 0.0f), pb = fmax(lb, 0.0f);
     i_r = fma(p, pr, i_r);
     i_g = fma(p, pg, i_g);

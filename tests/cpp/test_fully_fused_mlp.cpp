@@ -30,13 +30,7 @@ std::unique_ptr<FullyFusedMLP> make_mlp(const Json& config, std::uint32_t n_in, 
   return std::unique_ptr<FullyFusedMLP>(mlp);
 }
 
-std::vector<float> random_vector(std::size_t n, std::uint32_t seed, float lo = -1.0f, float hi = 1.0f) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(lo, hi);
-  std::vector<float> v(n);
-  for (auto& x : v) x = u(rng);
-  return v;
-}
+using reference::random_vector;
 
 
 struct Case {

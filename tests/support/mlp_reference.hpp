@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <vector>
 
 namespace relit::reference {
@@ -112,7 +113,16 @@ class MlpReference {
   Mat m_y;
 };
 
-Mat to_mat(const std::vector<float>& v, std::uint32_t rows, std::uint32_t cols) {
+/// n uniform floats in [lo, hi) from `seed`.
+inline std::vector<float> random_vector(std::size_t n, std::uint32_t seed, float lo = -1.0f, float hi = 1.0f) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(lo, hi);
+  std::vector<float> v(n);
+  for (auto& x : v) x = u(rng);
+  return v;
+}
+
+inline Mat to_mat(const std::vector<float>& v, std::uint32_t rows, std::uint32_t cols) {
   Mat m(rows, cols);
   for (std::uint32_t s = 0; s < rows; ++s)
     for (std::uint32_t f = 0; f < cols; ++f) m(s, f) = v[std::size_t(s) * cols + f];
@@ -135,7 +145,7 @@ double worst_ratio(const Got& got, const std::vector<double>& want, double rtol)
   return worst;
 }
 
-std::vector<double> flatten(const Mat& m) {
+inline std::vector<double> flatten(const Mat& m) {
   std::vector<double> v(std::size_t(m.rows()) * m.cols());
   for (Eigen::Index s = 0; s < m.rows(); ++s)
     for (Eigen::Index f = 0; f < m.cols(); ++f) v[std::size_t(s) * m.cols() + f] = m(s, f);
