@@ -15,6 +15,9 @@
 //
 //   S_dir = p(w_o, w_l; g) V I / |p_l - x|^2
 //   S_ind = (4 pi / K) sum_k p(w_o, w_k; g) max(0, sum_j c_j Y_j(w_k))          (INDIRECT_MODE 0)
+//   S_ind = sum_lm g^l c_lm Y_lm(-w_o)                                          (INDIRECT_MODE 1)
+// Mode 1 is the closed form of the HG convolution (Funk-Hecke; exact when the clamp is inactive): there
+// `sh_basis` holds Y_j(-w_o) per ray (an n_rays x N_SH tiled matrix) and `dirs` is unused.
 // Directions point away from the sample (seed appendix A); w_o = -d. HG with the seed's +2g convention.
 #include "common.clh"
 #include "geometry.clh"
@@ -24,6 +27,9 @@
 #endif
 #ifndef N_SH
 #define N_SH 36
+#endif
+#ifndef INDIRECT_MODE
+#define INDIRECT_MODE 0
 #endif
 #ifndef N_DIRS
 #define N_DIRS 64
@@ -70,6 +76,25 @@ inline void sh_expand(const float16* c, __global const float* sh_basis, uint k, 
   *lr = r;
   *lg = g;
   *lb = b;
+}
+
+// Closed form: per channel sum_l g^l sum_m c_lm Y_lm(-w_o) with Y of the tile's ray, and, for the backward
+// pass, the derivative in g (sum_l l g^(l-1) ...).
+inline void sh_closed_form(const float16* c, __global const float* view_basis, uint ray, float16 g, float16* s,
+                           float16* ds_dg) {
+  for (int ch = 0; ch < 3; ++ch) {
+    float16 sum = 0.0f, dsum = 0.0f, gl = 1.0f, dgl = 0.0f;  // g^l and its derivative l g^(l-1)
+    for (uint l = 0, j = 0; j < N_SH; ++l) {
+      float16 band = 0.0f;
+      for (uint m = 0; m < 2 * l + 1; ++m, ++j) band = fma(c[ch * N_SH + j], TILED(view_basis, N_SH, ray, j), band);
+      sum = fma(gl, band, sum);
+      dsum = fma(dgl, band, dsum);
+      dgl = fma(dgl, g, gl);  // d(g^(l+1)) = g d(g^l) + g^l
+      gl *= g;
+    }
+    s[ch] = sum;
+    ds_dg[ch] = dsum;
+  }
 }
 #endif
 
@@ -158,7 +183,14 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
   const TileLight L = tile_light(rays + (size_t)ray_index * RAY_FLOATS, t, props, tile);
   const float16 p_l = hg_phase16(L.g, L.mu_l) * L.direct;
   float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
-#if N_SH > 0
+#if N_SH > 0 && INDIRECT_MODE == 1
+  float16 c[3 * N_SH], ind[3], unused[3];
+  for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
+  sh_closed_form(c, sh_basis, ray_index, L.g, ind, unused);
+  s_r += ind[0];
+  s_g += ind[1];
+  s_b += ind[2];
+#elif N_SH > 0
   float16 c[3 * N_SH];
   for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
   float16 i_r = 0.0f, i_g = 0.0f, i_b = 0.0f;
@@ -202,7 +234,24 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
   float16 d_g = hg_dphase16_dg(L.g, L.mu_l) * dir_common *
                 (er * L.intensity.x + eg * L.intensity.y + eb * L.intensity.z);
-#if N_SH > 0
+#if N_SH > 0 && INDIRECT_MODE == 1
+  float16 c[3 * N_SH], ind[3], dind[3];
+  for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
+  sh_closed_form(c, sh_basis, ray_index, L.g, ind, dind);
+  s_r += ind[0];
+  s_g += ind[1];
+  s_b += ind[2];
+  d_g = fma(er, dind[0], fma(eg, dind[1], fma(eb, dind[2], d_g)));
+  {
+    const float16 e[3] = {er, eg, eb};
+    for (int ch = 0; ch < 3; ++ch) {
+      float16 gl = 1.0f;
+      for (uint l = 0, j = 0; j < N_SH; ++l, gl *= L.g)
+        for (uint m = 0; m < 2 * l + 1; ++m, ++j)
+          TILE_STORE(e[ch] * gl * TILED(sh_basis, N_SH, ray_index, j), d_props, tile, PROP_COLS, 6 + ch * N_SH + j);
+    }
+  }
+#elif N_SH > 0
   float16 c[3 * N_SH];
   float16 dc[3 * N_SH];
   for (uint j = 0; j < 3 * N_SH; ++j) {
@@ -304,4 +353,11 @@ __kernel void composite_backward(const uint n_rays, __global const float* restri
     d_radiance[rbase + 32] = w * dC.z;
     T *= 1.0f - alpha;
   }
+}
+
+// -w_o = d of each ray, as an n_rays x 3 tiled matrix: the SH encoding turns it into Y(-w_o) for mode 1.
+__kernel void view_directions(const uint n_rays, __global const float* restrict rays, __global float* restrict out) {
+  const uint r = get_global_id(0);
+  if (r >= n_rays) return;
+  for (int a = 0; a < 3; ++a) TILED(out, 3, r, a) = rays[(size_t)r * RAY_FLOATS + 4 + a];
 }

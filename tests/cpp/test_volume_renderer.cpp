@@ -68,7 +68,7 @@ RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int lmax, s
 }
 
 // Double-precision reference of sample placement + radiance + compositing (stratum centres).
-std::vector<double> reference_color(const RayScene& s, const std::vector<double>& props) {
+std::vector<double> reference_color(const RayScene& s, const std::vector<double>& props, bool closed_form = false) {
   std::vector<double> color;
   const std::uint32_t cols = s.cols();
   for (std::uint32_t r = 0; r < s.n_rays; ++r) {
@@ -92,7 +92,15 @@ std::vector<double> reference_color(const RayScene& s, const std::vector<double>
       const Vec3 x = o + t * d, wo = -d, tl = lp - x;
       const double g = p[4];
       Vec3 S = hg(g, wo.dot(tl.normalized())) * p[5] / tl.squaredNorm() * I;
-      for (std::uint32_t k = 0; k < s.n_dirs; ++k) {
+      if (closed_form && s.n_sh) {
+        // sum_l g^l sum_m c_lm Y_lm(-w_o), with -w_o = d.
+        const int lmax = int(std::lround(std::sqrt(double(s.n_sh)))) - 1;
+        const auto y = sh::eval(lmax, {d.x(), d.y(), d.z()});
+        for (int ch = 0; ch < 3; ++ch)
+          for (int l = 0, j = 0; l <= lmax; ++l)
+            for (int m = -l; m <= l; ++m, ++j) S[ch] += std::pow(g, l) * p[6 + ch * s.n_sh + j] * y[j];
+      }
+      for (std::uint32_t k = 0; !closed_form && k < s.n_dirs; ++k) {
         const Vec3 wk(s.dirs[3 * k], s.dirs[3 * k + 1], s.dirs[3 * k + 2]);
         for (int ch = 0; ch < 3; ++ch) {
           double L = 0;
@@ -114,14 +122,16 @@ struct DeviceRun {
   std::vector<float> color, transmittance, d_props;
 };
 
-DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::vector<float>& d_color) {
-  VolumeRenderer renderer(dev, {s.n_samples, lmax, s.n_dirs});
+DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::vector<float>& d_color,
+                     bool closed_form = false) {
+  VolumeRenderer renderer(dev, {s.n_samples, lmax, s.n_dirs, closed_form});
   const std::uint32_t n = s.n_rays * s.n_samples;
   Buffer<float> rays(dev, s.rays), t(dev, n), delta(dev, n), color(dev, 3 * s.n_rays), trans(dev, s.n_rays),
       dcol(dev, d_color);
   BatchMatrix dirs(dev, s.n_dirs, 3), basis(dev, s.n_dirs, s.n_sh);
   dirs.upload_row_major(s.dirs);
   if (s.n_sh) basis.upload_row_major(s.basis);
+  if (closed_form) renderer.view_basis(rays, s.n_rays, basis);
   BatchMatrix pos(dev, n, 3), props(dev, n, s.cols()), rad(dev, n, 3), drad(dev, n, 3), dprops(dev, n, s.cols());
   props.upload_row_major(std::vector<float>(s.props.begin(), s.props.end()));
   renderer.sample(rays, s.n_rays, false, 0, t, delta, pos);
@@ -171,6 +181,70 @@ TEST(VolumeRenderer, BackwardMatchesFiniteDifferencesOfTheReference) {
     }
   }
   EXPECT_GT(checked, 100);
+}
+
+TEST(VolumeRenderer, ClosedFormIndirectMatchesReferenceAndFiniteDifferences) {
+  const int lmax = 2;
+  const RayScene s = random_scene(3, 16, lmax, 8, 21);
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<float> w(3 * s.n_rays);
+  for (auto& v : w) v = u(rng);
+  const auto got = run_device(test::test_device(), s, lmax, w, true);
+  const auto ref = reference_color(s, s.props, true);
+  for (std::size_t i = 0; i < ref.size(); ++i) EXPECT_NEAR(got.color[i], ref[i], 2e-5 * std::abs(ref[i]) + 1e-6) << i;
+  auto loss = [&](const std::vector<double>& props) {
+    const auto c = reference_color(s, props, true);
+    double l = 0;
+    for (std::size_t i = 0; i < c.size(); ++i) l += w[i] * c[i];
+    return l;
+  };
+  const std::uint32_t cols = s.cols();
+  for (std::uint32_t smp = 0; smp < s.n_rays * s.n_samples; smp += 7)
+    for (std::uint32_t f = 0; f < cols; ++f) {
+      if (f == render::kVisibility) continue;
+      auto plus = s.props, minus = s.props;
+      plus[smp * cols + f] += 1e-6;
+      minus[smp * cols + f] -= 1e-6;
+      const double fd = (loss(plus) - loss(minus)) / 2e-6;
+      EXPECT_NEAR(got.d_props[smp * cols + f], fd, 1e-4 * std::abs(fd) + 2e-5) << "sample " << smp << " column " << f;
+    }
+}
+
+// With the max(0, .) clamp inactive, the closed form is the K-direction sum's limit (Funk-Hecke with the
+// seed's +2g phase convention): both renderers agree within the Monte Carlo error of K = 4096 directions.
+TEST(VolumeRenderer, ClosedFormIsTheLimitOfTheDirectionSum) {
+  const Device dev = test::test_device();
+  const int lmax = 2;
+  const std::uint32_t k = 4096, n_rays = 4, n = n_rays * 16;
+  RayScene s = random_scene(n_rays, 16, lmax, 1, 33);
+  for (std::uint32_t i = 0; i < n; ++i) {
+    double* p = &s.props[i * s.cols()];
+    p[4] = 0.6 * p[4] / 0.9;  // g in [-0.6, 0.6]
+    p[5] = 0;                 // no direct light: compare the indirect term alone
+    for (int ch = 0; ch < 3; ++ch) {
+      p[6 + ch * s.n_sh] = 3.0;  // a large constant band keeps the expansion positive everywhere
+      for (std::uint32_t j = 1; j < s.n_sh; ++j) p[6 + ch * s.n_sh + j] *= 0.3;
+    }
+  }
+  const std::vector<float> props(s.props.begin(), s.props.end());
+  auto render_with = [&](bool closed_form) {
+    VolumeRenderer renderer(dev, {16, lmax, k, closed_form});
+    render::IndirectBasis basis(dev, k, lmax);
+    basis.draw(1, 0);
+    Buffer<float> rays(dev, s.rays), t(dev, n), delta(dev, n), color(dev, 3 * n_rays), trans(dev, n_rays);
+    BatchMatrix pos(dev, n, 3), pm(dev, n, s.cols()), rad(dev, n, 3), view(dev, n_rays, renderer.n_sh());
+    pm.upload_row_major(props);
+    renderer.sample(rays, n_rays, false, 0, t, delta, pos);
+    if (closed_form) renderer.view_basis(rays, n_rays, view);
+    renderer.forward(rays, n_rays, t, delta, pm, basis.dirs(), closed_form ? view : basis.basis(), rad, color, trans);
+    return color.read();
+  };
+  const auto mc = render_with(false), exact = render_with(true);
+  for (std::size_t i = 0; i < mc.size(); ++i) {
+    ASSERT_GT(exact[i], 0.05f);
+    EXPECT_NEAR(mc[i], exact[i], 0.03 * exact[i]) << "value " << i;
+  }
 }
 
 TEST(VolumeRenderer, AbsorbingSlabTransmitsExpMinusSigmaD) {

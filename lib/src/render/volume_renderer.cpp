@@ -17,15 +17,32 @@ VolumeRenderer::VolumeRenderer(const Device& device, const RendererSettings& set
   m_n_sh = settings.sh_lmax < 0 ? 0 : static_cast<std::uint32_t>((settings.sh_lmax + 1) * (settings.sh_lmax + 1));
   m_defines = {{"N_SAMPLES", std::to_string(settings.n_samples)},
                {"N_SH", std::to_string(m_n_sh)},
-               {"N_DIRS", std::to_string(settings.n_dirs)}};
+               {"N_DIRS", std::to_string(settings.n_dirs)},
+               {"INDIRECT_MODE", settings.closed_form_indirect ? "1" : "0"}};
+  if (m_n_sh) m_sh = nn::create_encoding({{"type", "SphericalHarmonics"}, {"degree", settings.sh_lmax + 1}}, 3);
+}
+
+void VolumeRenderer::view_basis(const Buffer<float>& rays, std::uint32_t n_rays, nn::BatchMatrix& out) const {
+  if (out.cols() != m_n_sh) throw InvalidArgument("VolumeRenderer::view_basis: the output needs n_sh columns");
+  out.resize(n_rays);
+  if (!m_sh || n_rays == 0) return;
+  nn::BatchMatrix dirs(m_device, n_rays, 3);
+  m_device.kernel("render.cl", "view_directions", m_defines).args(n_rays, rays, dirs.data()).launch(n_rays, 16);
+  m_sh->forward(m_device, {nullptr, 0}, dirs, out, 0, nullptr);
 }
 
 void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
                            const nn::BatchMatrix& sh_basis, const char* what) const {
-  if (dirs.batch() != m_settings.n_dirs || dirs.cols() != 3 || sh_basis.batch() != m_settings.n_dirs ||
-      sh_basis.cols() != m_n_sh)
+  if (m_settings.closed_form_indirect) {
+    if (sh_basis.batch() != n_rays || sh_basis.cols() != m_n_sh)
+      throw InvalidArgument(std::string("VolumeRenderer::") + what + ": the closed-form indirect option needs the "
+                            "view basis of every ray (" + std::to_string(n_rays) + "x" + std::to_string(m_n_sh) +
+                            ", from view_basis())");
+  } else if (dirs.batch() != m_settings.n_dirs || dirs.cols() != 3 || sh_basis.batch() != m_settings.n_dirs ||
+             sh_basis.cols() != m_n_sh) {
     throw InvalidArgument(std::string("VolumeRenderer::") + what + ": need " + std::to_string(m_settings.n_dirs) +
                           " directions (x3) and their " + std::to_string(m_n_sh) + " SH basis values");
+  }
   const std::uint64_t n = std::uint64_t(n_rays) * m_settings.n_samples;
   if (props.batch() != n || props.cols() != prop_cols())
     throw InvalidArgument(std::string("VolumeRenderer::") + what + ": properties are " + std::to_string(props.batch()) +

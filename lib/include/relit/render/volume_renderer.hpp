@@ -32,6 +32,10 @@ struct RendererSettings {
   std::uint32_t n_samples = 64;  ///< samples per ray, a multiple of 16
   int sh_lmax = 5;               ///< SH bands 0..sh_lmax for indirect light; -1: no indirect light
   std::uint32_t n_dirs = 64;     ///< K, uniform directions of the indirect-light sum
+  /// Replace the K-direction sum by its closed form sum_lm g^l c_lm Y_lm(-w_o) (exact when the max(0, .)
+  /// clamp is inactive; an ablation and a fast preview). forward()/backward() then take the view basis
+  /// (view_basis()) in place of the directions' basis, and ignore `dirs`.
+  bool closed_form_indirect = false;
 };
 
 class VolumeRenderer {
@@ -50,10 +54,14 @@ class VolumeRenderer {
               Buffer<float>& delta, nn::BatchMatrix& positions) const;
 
   /// `dirs`: the n_dirs unit directions of the indirect sum (n_dirs x 3); `sh_basis`: Y_j(dir_k) (n_dirs x
-  /// n_sh). IndirectBasis draws both on the device.
+  /// n_sh). IndirectBasis draws both on the device. With closed_form_indirect, `sh_basis` is view_basis()'s
+  /// n_rays x n_sh matrix instead.
   void forward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t, const Buffer<float>& delta,
                const nn::BatchMatrix& props, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis,
                nn::BatchMatrix& radiance, Buffer<float>& color, Buffer<float>& transmittance) const;
+
+  /// Y_j(-w_o) for every ray (n_rays x n_sh), the basis the closed-form indirect option needs.
+  void view_basis(const Buffer<float>& rays, std::uint32_t n_rays, nn::BatchMatrix& out) const;
 
   /// Uses `radiance` and `color` from the forward call. Overwrites every column of `d_props`.
   void backward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t, const Buffer<float>& delta,
@@ -68,6 +76,7 @@ class VolumeRenderer {
   RendererSettings m_settings;
   std::uint32_t m_n_sh;
   Defines m_defines;
+  std::shared_ptr<nn::Encoding> m_sh;  // evaluates view_basis(); absent without indirect light
 };
 
 /// The K directions of the indirect-light sum, uniform on the sphere and drawn anew per iteration from
