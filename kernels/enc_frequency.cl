@@ -32,6 +32,17 @@ inline void freq_anchor(float16 x, int k, float16* s, float16* c) {
   *c = cospi(r);
 }
 
+// sin and cos of octave k from those of octave k - 1 (double-angle), re-anchored every ANCHOR octaves.
+inline void freq_octave(float16 x, int k, float16* s, float16* c) {
+  if (k % ANCHOR == 0) {
+    freq_anchor(x, k, s, c);
+  } else {
+    const float16 s2 = 2.0f * *s * *c;
+    *c = fma(-2.0f * *s, *s, (float16)1.0f);
+    *s = s2;
+  }
+}
+
 __kernel void frequency_forward(const uint n_tiles, const uint n_dims, __global const float* restrict in,
                                 const uint in_cols, const uint in_col, __global float* restrict out,
                                 const uint out_cols, const uint out_col) {
@@ -44,13 +55,7 @@ __kernel void frequency_forward(const uint n_tiles, const uint n_dims, __global 
     float16 s, c;
 #pragma unroll
     for (int k = 0; k < N_FREQ; ++k) {
-      if (k % ANCHOR == 0) {
-        freq_anchor(x, k, &s, &c);
-      } else {
-        const float16 s2 = 2.0f * s * c;
-        c = fma(-2.0f * s, s, (float16)1.0f);
-        s = s2;
-      }
+      freq_octave(x, k, &s, &c);
       enc_store(out, t, out_cols, base + d * 2 * N_FREQ + 2 * k, s);
       enc_store(out, t, out_cols, base + d * 2 * N_FREQ + 2 * k + 1, c);
     }
@@ -71,13 +76,7 @@ __kernel void frequency_backward(const uint n_tiles, const uint n_dims, __global
     float16 s, c;
 #pragma unroll
     for (int k = 0; k < N_FREQ; ++k) {
-      if (k % ANCHOR == 0) {
-        freq_anchor(x, k, &s, &c);
-      } else {
-        const float16 s2 = 2.0f * s * c;
-        c = fma(-2.0f * s, s, (float16)1.0f);
-        s = s2;
-      }
+      freq_octave(x, k, &s, &c);
       const float16 gs = enc_load(d_out, t, out_cols, base + d * 2 * N_FREQ + 2 * k);
       const float16 gc = enc_load(d_out, t, out_cols, base + d * 2 * N_FREQ + 2 * k + 1);
       g = fma((float16)(M_PI_F * (float)(1 << k)), fma(gs, c, -gc * s), g);

@@ -140,6 +140,41 @@ DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::
   return {color.read(), trans.read(), dprops.download_row_major()};
 }
 
+// Random weights w for the scalar loss L = sum w . colour.
+std::vector<float> random_weights(std::size_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<float> w(n);
+  for (auto& v : w) v = u(rng);
+  return w;
+}
+
+// Checks the device's dL/dproperties against central differences of the double reference, on every
+// `stride`-th sample; the visibility column must get zero gradient. Returns the number of values checked.
+int expect_gradients_match_finite_differences(const RayScene& s, const std::vector<float>& w,
+                                              const std::vector<float>& d_props, bool closed_form,
+                                              std::uint32_t stride) {
+  auto loss = [&](const std::vector<double>& props) {
+    const auto c = reference_color(s, props, closed_form);
+    double l = 0;
+    for (std::size_t i = 0; i < c.size(); ++i) l += w[i] * c[i];
+    return l;
+  };
+  const std::uint32_t cols = s.cols();
+  const double h = 1e-6;
+  int checked = 0;
+  for (std::uint32_t smp = 0; smp < s.n_rays * s.n_samples; smp += stride)
+    for (std::uint32_t f = 0; f < cols; ++f) {
+      auto plus = s.props, minus = s.props;
+      plus[smp * cols + f] += h;
+      minus[smp * cols + f] -= h;
+      const double fd = f == render::kVisibility ? 0.0 : (loss(plus) - loss(minus)) / (2 * h);
+      EXPECT_NEAR(d_props[smp * cols + f], fd, 1e-4 * std::abs(fd) + 2e-5) << "sample " << smp << " column " << f;
+      ++checked;
+    }
+  return checked;
+}
+
 }  // namespace
 
 TEST(VolumeRenderer, ForwardMatchesDoubleReference) {
@@ -155,60 +190,19 @@ TEST(VolumeRenderer, ForwardMatchesDoubleReference) {
 TEST(VolumeRenderer, BackwardMatchesFiniteDifferencesOfTheReference) {
   const int lmax = 1;
   const RayScene s = random_scene(3, 16, lmax, 8, 5);
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<float> u(-1, 1);
-  std::vector<float> w(3 * s.n_rays);
-  for (auto& v : w) v = u(rng);
+  const auto w = random_weights(3 * s.n_rays, 3);
   const auto got = run_device(test::test_device(), s, lmax, w);
-  auto loss = [&](const std::vector<double>& props) {
-    const auto c = reference_color(s, props);
-    double l = 0;
-    for (std::size_t i = 0; i < c.size(); ++i) l += w[i] * c[i];
-    return l;
-  };
-  const std::uint32_t cols = s.cols();
-  int checked = 0;
-  for (std::uint32_t smp = 0; smp < s.n_rays * s.n_samples; smp += 5) {
-    for (std::uint32_t f = 0; f < cols; ++f) {
-      auto plus = s.props, minus = s.props;
-      const double h = 1e-6;
-      plus[smp * cols + f] += h;
-      minus[smp * cols + f] -= h;
-      const double fd = f == render::kVisibility ? 0.0 : (loss(plus) - loss(minus)) / (2 * h);
-      const double g = got.d_props[smp * cols + f];
-      EXPECT_NEAR(g, fd, 1e-4 * std::abs(fd) + 2e-5) << "sample " << smp << " column " << f;
-      ++checked;
-    }
-  }
-  EXPECT_GT(checked, 100);
+  EXPECT_GT(expect_gradients_match_finite_differences(s, w, got.d_props, false, 5), 100);
 }
 
 TEST(VolumeRenderer, ClosedFormIndirectMatchesReferenceAndFiniteDifferences) {
   const int lmax = 2;
   const RayScene s = random_scene(3, 16, lmax, 8, 21);
-  std::mt19937 rng(8);
-  std::uniform_real_distribution<float> u(-1, 1);
-  std::vector<float> w(3 * s.n_rays);
-  for (auto& v : w) v = u(rng);
+  const auto w = random_weights(3 * s.n_rays, 8);
   const auto got = run_device(test::test_device(), s, lmax, w, true);
   const auto ref = reference_color(s, s.props, true);
   for (std::size_t i = 0; i < ref.size(); ++i) EXPECT_NEAR(got.color[i], ref[i], 2e-5 * std::abs(ref[i]) + 1e-6) << i;
-  auto loss = [&](const std::vector<double>& props) {
-    const auto c = reference_color(s, props, true);
-    double l = 0;
-    for (std::size_t i = 0; i < c.size(); ++i) l += w[i] * c[i];
-    return l;
-  };
-  const std::uint32_t cols = s.cols();
-  for (std::uint32_t smp = 0; smp < s.n_rays * s.n_samples; smp += 7)
-    for (std::uint32_t f = 0; f < cols; ++f) {
-      if (f == render::kVisibility) continue;
-      auto plus = s.props, minus = s.props;
-      plus[smp * cols + f] += 1e-6;
-      minus[smp * cols + f] -= 1e-6;
-      const double fd = (loss(plus) - loss(minus)) / 2e-6;
-      EXPECT_NEAR(got.d_props[smp * cols + f], fd, 1e-4 * std::abs(fd) + 2e-5) << "sample " << smp << " column " << f;
-    }
+  EXPECT_GT(expect_gradients_match_finite_differences(s, w, got.d_props, true, 7), 100);
 }
 
 // With the max(0, .) clamp inactive, the closed form is the K-direction sum's limit (Funk-Hecke with the
