@@ -22,6 +22,8 @@ int run(const std::vector<std::string>& args) {
   add_devices_command(app);
   add_config_reference_command(app);
   add_generate_command(app);
+  add_train_command(app);
+  add_render_command(app);
 
   std::vector<std::string> reversed(args.rbegin(), args.rend() - (args.empty() ? 0 : 1));
   try {

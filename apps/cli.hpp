@@ -16,5 +16,7 @@ int run(const std::vector<std::string>& args);
 void add_devices_command(CLI::App& app);
 void add_config_reference_command(CLI::App& app);
 void add_generate_command(CLI::App& app);
+void add_train_command(CLI::App& app);
+void add_render_command(CLI::App& app);
 
 }  // namespace relit::cli

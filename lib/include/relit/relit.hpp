@@ -12,6 +12,8 @@
 #include <relit/io/file.hpp>
 #include <relit/io/image.hpp>
 #include <relit/log.hpp>
+#include <relit/method/ours.hpp>
+#include <relit/method/trainer.hpp>
 #include <relit/metrics.hpp>
 #include <relit/nn/batch.hpp>
 #include <relit/nn/encodings.hpp>

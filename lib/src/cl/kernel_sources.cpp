@@ -1,7 +1,7 @@
 // Finding kernel sources and resolving their #includes.
 #include "cl/kernel_sources.hpp"
 
-#include "cl/embedded_kernels.hpp"
+#include "embedded_files.hpp"
 
 #include <relit/error.hpp>
 #include <relit/io/file.hpp>

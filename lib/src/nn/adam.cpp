@@ -34,8 +34,12 @@ class Adam final : public Optimizer {
     m_v = Buffer<float>(device, n_params);
     m_m.fill(0.0f);
     m_v.fill(0.0f);
+    m_no_guard = Buffer<float>(device, 1);
+    m_no_guard.fill(0.0f);
     m_step = 0;
   }
+
+  void set_guard(const Buffer<float>* guard) override { m_guard = guard; }
 
   void step(Buffer<float>& params, const Buffer<float>& grads) override {
     if (params.size() != m_m.size() || grads.size() != m_m.size())
@@ -49,7 +53,7 @@ class Adam final : public Optimizer {
     const float inv_c2 = static_cast<float>(1.0 / (1.0 - std::pow(double(m_beta2), t)));
     const auto n = static_cast<std::uint32_t>(params.size());
     m_device.kernel("adam.cl", "adam_step")
-        .args(n, lr, m_beta1, m_beta2, m_epsilon, m_weight_decay, inv_c1, inv_c2, params, grads, m_m, m_v)
+        .args(n, lr, m_beta1, m_beta2, m_epsilon, m_weight_decay, inv_c1, inv_c2, params, grads, m_m, m_v, m_guard ? *m_guard : m_no_guard)
         .launch(n, 64);
   }
 
@@ -65,7 +69,8 @@ class Adam final : public Optimizer {
   std::uint32_t m_decay_steps;
   Json m_hyperparams;
   Device m_device;
-  Buffer<float> m_m, m_v;
+  Buffer<float> m_m, m_v, m_no_guard;
+  const Buffer<float>* m_guard = nullptr;
   std::uint64_t m_step = 0;
 };
 

@@ -13,9 +13,9 @@ void copy_columns(const Device& device, const BatchMatrix& src, std::uint32_t sr
 
 /// For 3 channel-major blocks of `per_channel` columns: dst = I_ch(ray) * src, where sample s belongs to ray
 /// s / samples_per_ray (a multiple of 16) and I is the ray record's RGB intensity (render::kRayFloats layout).
-/// Its own adjoint: the gradient goes back through the same call.
+/// Every value is also multiplied by `scale`. Its own adjoint: the gradient goes back through the same call.
 void scale_rgb_by_ray_intensity(const Device& device, const Buffer<float>& rays, std::uint32_t samples_per_ray,
                                 const BatchMatrix& src, std::uint32_t src_col, BatchMatrix& dst, std::uint32_t dst_col,
-                                std::uint32_t per_channel);
+                                std::uint32_t per_channel, float scale = 1.0f);
 
 }  // namespace relit::nn

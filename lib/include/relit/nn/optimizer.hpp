@@ -28,6 +28,10 @@ class Optimizer {
   virtual void allocate(const Device& device, std::size_t n_params) = 0;
   /// One update, enqueued on the parameters' device.
   virtual void step(Buffer<float>& params, const Buffer<float>& grads) = 0;
+  /// A one-float device buffer read by every later step: when its value is not finite (the step's loss
+  /// was NaN/Inf) the step leaves parameters and state unchanged. nullptr (the default) disables the guard.
+  /// The buffer must outlive the optimiser's steps.
+  virtual void set_guard(const Buffer<float>* guard) = 0;
   /// Steps taken so far.
   virtual std::uint64_t step_count() const = 0;
   /// The learning rate the next step will use.

@@ -1,0 +1,184 @@
+// relit train / relit render: fit the "Ours" model to a dataset, and relight a trained run.
+#include "cli.hpp"
+#include "progress_bar.hpp"
+
+#include <relit/cl/device.hpp>
+#include <relit/dataset.hpp>
+#include <relit/error.hpp>
+#include <relit/io/file.hpp>
+#include <relit/io/image.hpp>
+#include <relit/method/trainer.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace relit::cli {
+
+namespace {
+
+std::string fixed(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+struct TrainOptions {
+  std::string dataset, config = "fast", out, device;
+  long long steps = -1, seed = -1;
+  bool resume = false;
+  unsigned profile = 0;
+};
+
+int run_train(const TrainOptions& o) {
+  const std::string checkpoint = (fs::path(o.out) / "checkpoint.relit").string();
+  Json config;
+  if (o.resume) {
+    if (!fs::exists(checkpoint)) throw IOError("--resume: " + checkpoint + " does not exist");
+    config = Json::parse(io::read_file((fs::path(o.out) / "config.json").string()));
+    config.erase("dataset");
+  } else {
+    if (fs::exists(checkpoint))
+      throw IOError(o.out + " already holds a run (checkpoint.relit); pass --resume to continue it or choose "
+                            "another --out");
+    config = method::load_run_config(o.config);
+  }
+  if (o.seed >= 0) config["training"]["seed"] = o.seed;
+  const Device device = Device::select(o.device);
+  method::Trainer trainer(device, o.dataset, config);
+  if (o.profile) {
+    std::cout << "per-stage time of one step (mean of " << o.profile << " steps, " << trainer.settings().batch_rays
+              << " rays x " << trainer.model().settings().renderer.n_samples << " samples) on " << device.info().name
+              << ":\n";
+    double total = 0;
+    for (const auto& [stage, ms] : trainer.profile(o.profile)) {
+      std::cout << "  " << stage << std::string(stage.size() < 34 ? 34 - stage.size() : 1, ' ') << fixed(ms, 2) << " ms\n";
+      total += ms;
+    }
+    std::cout << "  total" << std::string(29, ' ') << fixed(total, 2) << " ms\n";
+    return 0;
+  }
+  trainer.set_output(o.out);
+  if (o.resume) trainer.load_checkpoint(checkpoint);
+  const std::uint64_t target = o.steps >= 0 ? std::uint64_t(o.steps) : trainer.settings().steps;
+  std::cerr << "relit train: " << o.dataset << " → " << o.out << ", " << trainer.model().n_params() << " + "
+            << trainer.model().n_vis_params() << " parameters, steps " << trainer.steps() << " → " << target << ", on "
+            << device.info().name << "\n";
+  ProgressBar bar("train");
+  const auto start_step = trainer.steps();
+  const auto stats = trainer.run_until(target, [&](const method::TrainStats& s) {
+    Progress p;
+    p.done = s.step - start_step;
+    p.total = target - start_step;
+    p.elapsed = s.elapsed;
+    p.rate = s.steps_per_second;
+    p.eta = s.eta;
+    p.unit = "steps";
+    p.message = "step " + std::to_string(s.step) + " loss " + fixed(s.loss, 5) +
+                (std::isnan(s.val_psnr) ? std::string() : " val PSNR " + fixed(s.val_psnr, 2) + " dB");
+    return bar(p);
+  });
+  bar.finish();
+  std::cout << "trained " << stats.step << " steps in " << fixed(stats.elapsed, 1) << " s ("
+            << fixed(stats.steps_per_second, 2) << " steps/s); loss " << fixed(stats.loss, 6);
+  if (!std::isnan(stats.val_psnr)) std::cout << ", validation PSNR " << fixed(stats.val_psnr, 2) << " dB";
+  if (stats.skipped) std::cout << ", " << stats.skipped << " step(s) skipped (non-finite loss)";
+  std::cout << "\nrun written to " << o.out << "\n";
+  return 0;
+}
+
+std::vector<float> triple(const std::vector<float>& v, const char* what) {
+  if (v.size() == 1) return {v[0], v[0], v[0]};
+  if (v.size() == 3) return v;
+  throw InvalidArgument(std::string(what) + " takes 1 or 3 values");
+}
+
+struct RenderOptions {
+  std::string run, out, device, view, visibility;
+  std::vector<float> eye{0, -4, 1}, target{0, 0, 0}, light{0, -3, 3}, intensity{600};
+  int resolution = 128;
+  float fov = 0.8f;
+};
+
+int run_render(const RenderOptions& o) {
+  const Device device = Device::select(o.device);
+  const auto model = method::load_model(device, (fs::path(o.run) / "checkpoint.relit").string());
+  Camera camera;
+  PointLight light;
+  if (!o.view.empty()) {
+    // DATASET:SPLIT:INDEX — the camera and light of a dataset view.
+    const auto a = o.view.rfind(':'), b = o.view.rfind(':', a - 1);
+    if (a == std::string::npos || b == std::string::npos)
+      throw InvalidArgument("--view takes DATASET:SPLIT:INDEX, got '" + o.view + "'");
+    const auto desc = read_dataset(o.view.substr(0, b));
+    const std::string split = o.view.substr(b + 1, a - b - 1);
+    const auto it = desc.splits.find(split);
+    const std::size_t index = std::stoul(o.view.substr(a + 1));
+    if (it == desc.splits.end() || index >= it->second.size())
+      throw InvalidArgument("--view: no view " + std::to_string(index) + " in split '" + split + "'");
+    camera = it->second[index].camera;
+    light = it->second[index].light;
+  } else {
+    const auto e = triple(o.eye, "--eye"), t = triple(o.target, "--target");
+    camera = Camera::look_at({e[0], e[1], e[2]}, {t[0], t[1], t[2]}, {0, 0, 1}, o.fov, o.resolution, o.resolution);
+  }
+  if (o.view.empty() || o.light != std::vector<float>{0, -3, 3}) {
+    const auto l = triple(o.light, "--light");
+    light.position = {l[0], l[1], l[2]};
+  }
+  const auto i = triple(o.intensity, "--intensity");
+  if (o.view.empty() || o.intensity != std::vector<float>{600}) light.intensity = {i[0], i[1], i[2]};
+  ProgressBar bar("render");
+  method::RenderSettings rs;
+  rs.visibility = o.visibility;
+  const Image img = method::render_image(*model, camera, light, rs, [&](const Progress& p) { return bar(p); });
+  bar.finish();
+  write_image(o.out, img);
+  std::cout << "image written to " << o.out << "\n";
+  return 0;
+}
+
+}  // namespace
+
+void add_train_command(CLI::App& app) {
+  auto o = std::make_shared<TrainOptions>();
+  auto* cmd = app.add_subcommand("train", "train the relightable model on a dataset (writes a run folder)");
+  cmd->add_option("dataset", o->dataset, "dataset folder (relit generate writes one)")->required();
+  cmd->add_option("--config,-c", o->config, "preset (fast, paper) or a run config .json")->capture_default_str();
+  cmd->add_option("--out,-o", o->out, "run folder: config.json, log.jsonl, checkpoint.relit")->required();
+  cmd->add_option("--steps", o->steps, "train until this step (default: the config's training.steps)");
+  cmd->add_option("--seed", o->seed, "training seed (default: the config's training.seed)");
+  cmd->add_flag("--resume", o->resume, "continue the run in --out from its checkpoint");
+  cmd->add_option("--profile", o->profile, "time each stage over this many steps, print it and exit (nothing written)");
+  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
+  cmd->final_callback([o] {
+    if (const int code = run_train(*o)) throw CLI::RuntimeError(code);
+  });
+}
+
+void add_render_command(CLI::App& app) {
+  auto o = std::make_shared<RenderOptions>();
+  auto* cmd = app.add_subcommand("render", "relight a trained run: render a camera under a point light");
+  cmd->add_option("run", o->run, "run folder written by relit train")->required();
+  cmd->add_option("--out,-o", o->out, "output image (.png: sRGB 8-bit, .exr: linear float)")->required();
+  cmd->add_option("--view", o->view, "use the camera (and light, unless --light/--intensity are given) of a dataset "
+                                     "view: DATASET:SPLIT:INDEX");
+  cmd->add_option("--eye", o->eye, "camera position (x y z)")->expected(3);
+  cmd->add_option("--target", o->target, "point the camera looks at (x y z)")->expected(3);
+  cmd->add_option("--resolution", o->resolution, "image width and height")->capture_default_str();
+  cmd->add_option("--fov", o->fov, "horizontal field of view, radians")->capture_default_str();
+  cmd->add_option("--light", o->light, "point light position (x y z)")->expected(3);
+  cmd->add_option("--intensity", o->intensity, "light intensity in W/sr: one value (white) or r g b")->expected(1, 3);
+  cmd->add_option("--visibility", o->visibility, "network or march (default: the model's setting)")
+      ->check(CLI::IsMember({"network", "march"}));
+  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
+  cmd->final_callback([o] {
+    if (const int code = run_render(*o)) throw CLI::RuntimeError(code);
+  });
+}
+
+}  // namespace relit::cli

@@ -1,0 +1,82 @@
+// method.cl: the glue kernels of the "Ours" model (DESIGN §4.3) — network inputs that depend on the light,
+// moves between the renderer's per-ray rows and the nn family's tiled matrices, density-grid refresh, and the
+// NaN/Inf guard of a training step.
+//
+// Tiled layout (relit/nn/batch.hpp): element (s, f) of a matrix with `cols` columns at ((s/16)*cols + f)*16 + s%16.
+// Ray records: 20 floats, light position at 8..10 (see render.cl).
+#define RAY_FLOATS 20
+#define TILED_AT(cols, s, f) ((((size_t)(s) / 16) * (cols) + (f)) * 16 + (s) % 16)
+
+// For sample s of ray s / samples_per_ray at world position x in [-1, 1]^3 (positions: n x 3):
+//   net_pos[:, 0..3]            = (x + 1) / 2               (networks see the box as [0, 1]^3)
+//   light_in[:, light_col..+3]  = light_scale * p_l          (the indirect head's conditioning input)
+//   vis_in[:, 0..3] = (x + 1) / 2,  vis_in[:, 3..6] = w_l = (p_l - x)/|p_l - x|   (the visibility net's input)
+__kernel void light_inputs(const uint n, const uint samples_per_ray, __global const float* restrict rays,
+                           __global const float* restrict positions, const float light_scale,
+                           __global float* restrict net_pos, __global float* restrict light_in,
+                           const uint light_cols, const uint light_col, __global float* restrict vis_in) {
+  const uint s = get_global_id(0);
+  if (s >= n) return;
+  __global const float* ray = rays + (size_t)(s / samples_per_ray) * RAY_FLOATS;
+  const float3 p = (float3)(ray[8], ray[9], ray[10]);
+  const float3 x = (float3)(positions[TILED_AT(3, s, 0)], positions[TILED_AT(3, s, 1)], positions[TILED_AT(3, s, 2)]);
+  const float3 w = normalize(p - x);
+  const float3 u = fma(x, 0.5f, 0.5f);
+  net_pos[TILED_AT(3, s, 0)] = u.x;
+  net_pos[TILED_AT(3, s, 1)] = u.y;
+  net_pos[TILED_AT(3, s, 2)] = u.z;
+  if (light_cols) {
+    light_in[TILED_AT(light_cols, s, light_col + 0)] = light_scale * p.x;
+    light_in[TILED_AT(light_cols, s, light_col + 1)] = light_scale * p.y;
+    light_in[TILED_AT(light_cols, s, light_col + 2)] = light_scale * p.z;
+  }
+  vis_in[TILED_AT(6, s, 0)] = u.x;
+  vis_in[TILED_AT(6, s, 1)] = u.y;
+  vis_in[TILED_AT(6, s, 2)] = u.z;
+  vis_in[TILED_AT(6, s, 3)] = w.x;
+  vis_in[TILED_AT(6, s, 4)] = w.y;
+  vis_in[TILED_AT(6, s, 5)] = w.z;
+}
+
+// Row-major (n x cols, rows contiguous) <-> tiled n x cols.
+__kernel void rows_to_tiled(const uint n, const uint cols, __global const float* restrict src, __global float* restrict dst) {
+  const uint s = get_global_id(0);
+  if (s >= n) return;
+  for (uint f = 0; f < cols; ++f) dst[TILED_AT(cols, s, f)] = src[(size_t)s * cols + f];
+}
+__kernel void tiled_to_rows(const uint n, const uint cols, __global const float* restrict src, __global float* restrict dst) {
+  const uint s = get_global_id(0);
+  if (s >= n) return;
+  for (uint f = 0; f < cols; ++f) dst[(size_t)s * cols + f] = src[TILED_AT(cols, s, f)];
+}
+
+// Network positions ([0, 1]^3) of voxel centres first .. first + n of an nx x ny x nz grid over the box
+// (x fastest), n x 3 tiled.
+__kernel void grid_positions(const uint n, const uint first, const int nx, const int ny, const int nz,
+                             __global float* restrict out) {
+  const uint s = get_global_id(0);
+  if (s >= n) return;
+  const uint v = first + s;
+  const int ix = v % nx, iy = (v / nx) % ny, iz = v / (nx * ny);
+  out[TILED_AT(3, s, 0)] = (ix + 0.5f) / nx;
+  out[TILED_AT(3, s, 1)] = (iy + 0.5f) / ny;
+  out[TILED_AT(3, s, 2)] = (iz + 0.5f) / nz;
+}
+
+// dst[offset + s] = src[s, col] for s < n (one column of a tiled matrix into a flat array).
+__kernel void column_to_flat(const uint n, const uint cols, const uint col, __global const float* restrict src,
+                             __global float* restrict dst, const uint offset) {
+  const uint s = get_global_id(0);
+  if (s >= n) return;
+  dst[offset + s] = src[TILED_AT(cols, s, col)];
+}
+
+// guard[0] = a[0] + b[0] (the step's losses); when it is not finite the optimisers skip the step (they read
+// guard[0]) and skipped[0] counts it. One work-item.
+__kernel void step_guard(__global const float* restrict a, __global const float* restrict b, __global float* restrict guard,
+                         __global uint* restrict skipped) {
+  if (get_global_id(0) != 0) return;
+  const float total = a[0] + b[0];
+  guard[0] = total;
+  if (!isfinite(total)) skipped[0] += 1;
+}

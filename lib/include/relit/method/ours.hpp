@@ -1,0 +1,137 @@
+// The "Ours" model (DESIGN §4.3): the networks of the method and the passes that join them to the volume
+// renderer.
+//
+//   positions x ──► property net F_θ ──► σ (softplus), albedo (sigmoid), g (0.95 tanh), feature f
+//   [f, p_l]   ──► indirect SH head h_θ ──► c = (I / I_ref) ⊙ h          (scaled by the light's RGB intensity)
+//   [x, ω_l]   ──► visibility net V_ψ  ──► V (sigmoid)
+//   σ, a, g, V, c ──► VolumeRenderer ──► pixel colour
+//
+// θ (property net + SH head) and ψ (visibility net) live in two flat parameter buffers with their own
+// optimisers. Gradients are isolated both ways (seed appendix C): the render loss reaches θ only (the
+// renderer gives no gradient to V), and the visibility loss — against the transmittance of the learned
+// density, marched through a cached density grid — reaches ψ only (the targets are constants).
+//
+// The model is configured by the "model" object of a run config (docs/method.md; keys in docs/config.md).
+#pragma once
+
+#include <relit/config.hpp>
+#include <relit/nn/module.hpp>
+#include <relit/nn/network_with_encoding.hpp>
+#include <relit/render/visibility.hpp>
+#include <relit/render/volume_renderer.hpp>
+
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace relit::method {
+
+/// Resolved settings of the model (the non-network keys of the "model" config object).
+struct OursSettings {
+  render::RendererSettings renderer;
+  std::uint32_t n_features = 11;          ///< feature columns the property net passes to the SH head
+  float intensity_reference = 1000.0f;    ///< I_ref: the SH head predicts indirect light per I / I_ref
+  bool light_conditioned = true;          ///< false: c = c(x), the position-only ablation
+  std::uint32_t grid_resolution = 64;     ///< density grid for visibility targets (per axis)
+  std::uint32_t grid_refresh = 16;        ///< refresh the grid every this many training steps
+  std::uint32_t march_steps = 64;         ///< midpoint steps of the visibility-target march
+  std::string inference_visibility = "network";  ///< "network" (as the paper) or "march" (density grid)
+};
+
+/// Per-stage timing of a training step, for profiling: when enabled, mark() waits for the device and adds the
+/// time since the previous mark to `stage`. Disabled (the default) it does nothing, so steps stay asynchronous.
+class StageTimer {
+ public:
+  void enable(const Device& device);
+  bool enabled() const { return m_enabled; }
+  void start();
+  void mark(const std::string& stage);
+  /// Seconds per stage, in first-marked order.
+  const std::vector<std::pair<std::string, double>>& seconds() const { return m_seconds; }
+  void clear() { m_seconds.clear(); }
+
+ private:
+  bool m_enabled = false;
+  Device m_device;
+  double m_last = 0;
+  std::vector<std::pair<std::string, double>> m_seconds;
+};
+
+/// Scratch matrices of one pass over a batch of rays; reused across iterations (no allocation once sized).
+struct OursPass {
+  std::uint32_t n_rays = 0;
+  Buffer<float> t, delta, color, transmittance;
+  nn::BatchMatrix positions, net_pos, props_raw, light_in, indirect_raw, vis_in, vis, props, radiance;
+  nn::BatchMatrix d_props, d_radiance, d_props_raw, d_indirect_raw, d_light_in;
+  std::unique_ptr<nn::Workspace> ws_property, ws_indirect, ws_visibility;
+};
+
+class Ours {
+ public:
+  /// Builds the networks from the "model" config object (at JSON pointer `pointer`); unknown keys and bad
+  /// values are ConfigErrors naming the pointer.
+  Ours(const Device& device, const Json& config, const std::string& pointer = "/model");
+
+  const OursSettings& settings() const { return m_settings; }
+  /// The resolved "model" config: building from it gives the same model.
+  const Json& hyperparams() const { return m_resolved; }
+  const render::VolumeRenderer& renderer() const { return *m_renderer; }
+  const Device& device() const { return m_device; }
+
+  /// θ: [property net | SH head]; ψ: the visibility net.
+  std::uint32_t n_params() const;
+  std::uint32_t n_vis_params() const;
+  Buffer<float>& params() { return m_params; }
+  Buffer<float>& vis_params() { return m_vis_params; }
+  const Buffer<float>& params() const { return m_params; }
+  const Buffer<float>& vis_params() const { return m_vis_params; }
+  Buffer<float>& grads() { return m_grads; }
+  Buffer<float>& vis_grads() { return m_vis_grads; }
+  /// Re-initialises both parameter buffers deterministically from `seed`.
+  void initialize(std::uint64_t seed);
+
+  const nn::NetworkWithInputEncoding& property_network() const { return *m_property; }
+  const nn::NetworkWithInputEncoding& indirect_network() const { return *m_indirect; }
+  const nn::NetworkWithInputEncoding& visibility_network() const { return *m_visibility; }
+
+  /// Sizes the pass for `n_rays` rays (allocates only when it grows).
+  void prepare(OursPass& pass, std::uint32_t n_rays) const;
+
+  /// Samples the rays (sample positions, jittered when training), runs the three networks and assembles the
+  /// renderer's property matrix. `training` keeps the activations for backward(); `march_visibility`
+  /// replaces the visibility network by a march through the density grid (inference option).
+  void forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bool training, std::uint32_t seed,
+               const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, bool march_visibility = false,
+               StageTimer* timer = nullptr) const;
+
+  /// Given dL/dcolour (n_rays x 3, rows): writes dL/dθ into grads() (overwriting). The visibility network
+  /// gets nothing (gradient isolation).
+  void backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis,
+                const Buffer<float>& d_color, StageTimer* timer = nullptr);
+
+  /// The visibility network's training targets for the pass's samples: exp(-optical depth) toward the light
+  /// through the density grid (n_samples x 1).
+  void visibility_targets(const OursPass& pass, const Buffer<float>& rays, nn::BatchMatrix& targets) const;
+  /// Given dL/dV for the pass's visibility output: writes dL/dψ into vis_grads() (overwriting). θ gets nothing.
+  void visibility_backward(OursPass& pass, const nn::BatchMatrix& d_vis);
+
+  /// Re-evaluates the density grid from the current θ (the property net's σ at the voxel centres).
+  void refresh_density_grid();
+  const render::DensityGrid& density_grid() const { return m_grid; }
+  render::DensityGrid& density_grid() { return m_grid; }
+
+ private:
+  Device m_device;
+  OursSettings m_settings;
+  Json m_resolved;
+  float m_light_scale = 0.125f;
+  std::unique_ptr<render::VolumeRenderer> m_renderer;
+  std::unique_ptr<nn::NetworkWithInputEncoding> m_property, m_indirect, m_visibility;
+  Buffer<float> m_params, m_grads, m_vis_params, m_vis_grads;
+  render::DensityGrid m_grid;
+  nn::BatchMatrix m_grid_positions, m_grid_props;
+  std::unique_ptr<nn::Workspace> m_grid_ws;
+};
+
+}  // namespace relit::method

@@ -1,0 +1,371 @@
+// The "Ours" model: networks, the forward pass that assembles the renderer's properties, and the two
+// isolated backward passes (kernels/method.cl holds the glue kernels).
+#include <relit/cl/program.hpp>
+#include <relit/method/ours.hpp>
+#include <relit/nn/columns.hpp>
+#include <relit/nn/registry.hpp>
+
+#include <algorithm>
+#include <chrono>
+
+namespace relit::method {
+
+namespace {
+
+constexpr std::uint32_t kPropHeads = 5;  // sigma, albedo (3), g: the property net's outputs before the features
+
+Json default_property() {
+  return {{"encoding", {{"type", "HashGrid"}, {"n_levels", 12}, {"n_features_per_level", 2}, {"log2_hashmap_size", 17},
+                        {"base_resolution", 16}, {"per_level_scale", 1.32}}},
+          {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}}};
+}
+Json default_indirect() {
+  return {{"light_encoding", {{"type", "Frequency"}, {"n_frequencies", 4}, {"include_input", true}}},
+          {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}}};
+}
+Json default_visibility() {
+  return {{"position_encoding", {{"type", "HashGrid"}, {"n_levels", 8}, {"n_features_per_level", 2},
+                                 {"log2_hashmap_size", 15}, {"base_resolution", 8}, {"per_level_scale", 1.5}}},
+          {"direction_encoding", {{"type", "SphericalHarmonics"}, {"degree", 4}}},
+          {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}}};
+}
+
+// Reads an object-valued key of `r` with its own Reader over the given sub-keys (each a component JSON,
+// defaulting to the entry of `defaults`).
+struct SubConfig {
+  config::Reader reader;
+  SubConfig(config::Reader& parent, const std::string& key, const Json& defaults, const std::string& description)
+      : reader(parent.sub(key, defaults, "object", description), parent.pointer(key), key) {}
+  Json component(const std::string& key, const Json& defaults, const std::string& description) {
+    return reader.sub(key, defaults.at(key), "component", description);
+  }
+};
+
+// A network JSON with the output heads the model needs; the user may not set them.
+Json with_heads(Json network, const std::string& pointer, const Json& heads) {
+  if (!network.is_object()) throw ConfigError(pointer, "must be a network object, got " + network.dump());
+  for (const char* key : {"output_heads", "output_activation"})
+    if (network.contains(key))
+      throw ConfigError(pointer + "/" + key, "is set by the model (its heads are fixed by the method); remove it");
+  network["output_heads"] = heads;
+  return network;
+}
+
+Json strip_heads(Json network) {
+  network.erase("output_heads");
+  network.erase("output_activation");
+  return network;
+}
+
+void check_pass(const OursPass& pass, const char* what) {
+  if (pass.n_rays == 0) throw InvalidArgument(std::string("Ours::") + what + ": the pass holds no forward results");
+}
+
+double now_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+void mark(StageTimer* timer, const char* stage) {
+  if (timer) timer->mark(stage);
+}
+
+}  // namespace
+
+void StageTimer::enable(const Device& device) {
+  m_device = device;
+  m_enabled = true;
+}
+
+void StageTimer::start() {
+  if (!m_enabled) return;
+  m_device.finish();
+  m_last = now_seconds();
+}
+
+void StageTimer::mark(const std::string& stage) {
+  if (!m_enabled) return;
+  m_device.finish();
+  const double t = now_seconds();
+  auto it = std::find_if(m_seconds.begin(), m_seconds.end(), [&](const auto& p) { return p.first == stage; });
+  if (it == m_seconds.end()) m_seconds.emplace_back(stage, t - m_last);
+  else it->second += t - m_last;
+  m_last = t;
+}
+
+Ours::Ours(const Device& device, const Json& config, const std::string& pointer) : m_device(device) {
+  if (!config.is_object()) throw ConfigError(pointer, "the model config must be an object, got " + config.dump());
+  config::Reader r(config, pointer, "model");
+  auto& s = m_settings;
+  {
+    config::Reader rr(r.sub("renderer", Json::object(), "object", "the volume renderer (DESIGN §4.2)"),
+                      r.pointer("renderer"), "renderer");
+    s.renderer.n_samples = rr.uint("n_samples", 64, 16, 1024, "samples per ray (a multiple of 16)");
+    if (s.renderer.n_samples % 16) rr.fail("n_samples", "must be a multiple of 16, got " + std::to_string(s.renderer.n_samples));
+    const std::string sh = rr.choice("sh", "5", {"none", "0", "1", "2", "3", "4", "5", "6", "7", "8", "9"},
+                                     "SH bands of the indirect light: l_max, or none (no indirect light)");
+    s.renderer.sh_lmax = sh == "none" ? -1 : std::stoi(sh);
+    s.renderer.n_dirs = rr.uint("n_dirs", 64, 1, 4096, "K, uniform directions of the indirect-light sum");
+    s.renderer.closed_form_indirect = rr.boolean("closed_form_indirect", false,
+                                                 "closed-form indirect light sum_lm g^l c_lm Y_lm(-w_o) instead of "
+                                                 "the K-direction sum (no max(0, .) clamp)");
+    rr.finish();
+    r.set_resolved("renderer", rr.resolved());
+  }
+  s.n_features = r.uint("n_features", 11, 1, 256, "feature columns passed from the property net to the SH head");
+  s.intensity_reference = r.number("intensity_reference", 1000.0f, 1e-6f, 1e9f,
+                                   "I_ref [W/sr]: the SH head predicts indirect light per unit I / I_ref");
+  const float light_scale =
+      r.number("light_position_scale", 0.125f, 1e-6f, 1e3f, "the SH head sees the light position times this");
+  s.light_conditioned = r.boolean("light_conditioned", true,
+                                  "condition the SH head on the light position (false: c = c(x), an ablation)");
+  {
+    config::Reader gr(r.sub("density_grid", Json::object(), "object", "the cached density grid of visibility targets"),
+                      r.pointer("density_grid"), "density_grid");
+    s.grid_resolution = gr.uint("resolution", 64, 4, 512, "voxels per axis");
+    s.grid_refresh = gr.uint("refresh_every", 16, 1, 1u << 20, "training steps between refreshes from the property net");
+    s.march_steps = gr.uint("march_steps", 64, 1, 4096, "midpoint steps of each visibility-target march");
+    gr.finish();
+    r.set_resolved("density_grid", gr.resolved());
+  }
+  s.inference_visibility = r.choice("inference_visibility", "network", {"network", "march"},
+                                    "visibility when rendering: the network (as the paper) or a density-grid march");
+  m_light_scale = light_scale;
+
+  const std::uint32_t n_sh = s.renderer.sh_lmax < 0 ? 0 : std::uint32_t((s.renderer.sh_lmax + 1) * (s.renderer.sh_lmax + 1));
+  // Property network: [0,1]^3 position → sigma, albedo, g, features.
+  {
+    SubConfig sub(r, "property", default_property(), "property network F_θ: {encoding, network}");
+    const Json enc = sub.component("encoding", default_property(), "position encoding (3 dims)");
+    Json net = sub.component("network", default_property(), "the trunk; its output heads are set by the model");
+    sub.reader.finish();
+    const std::string ptr = r.pointer("property");
+    net = with_heads(net, ptr + "/network",
+                     Json::array({{{"n_dims", 1}, {"activation", "Softplus"}}, {{"n_dims", 3}, {"activation", "Sigmoid"}},
+                                  {{"n_dims", 1}, {"activation", "Tanh"}}, {{"n_dims", s.n_features}, {"activation", "None"}}}));
+    auto e = nn::create_encoding(enc, 3, ptr + "/encoding");
+    auto n = nn::create_network(net, e->n_output_dims(), kPropHeads + s.n_features, ptr + "/network");
+    m_property = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
+    Json res = m_property->hyperparams();
+    res["network"] = strip_heads(res["network"]);
+    r.set_resolved("property", res);
+  }
+  // Indirect SH head: [features, light position] → 3 n_sh coefficients per unit intensity.
+  if (n_sh > 0) {
+    SubConfig sub(r, "indirect", default_indirect(), "indirect SH head h_θ: {light_encoding, network}");
+    const Json lenc = sub.component("light_encoding", default_indirect(), "encoding of the light position (3 dims)");
+    Json net = sub.component("network", default_indirect(), "the head's MLP (output activation: none)");
+    sub.reader.finish();
+    const std::string ptr = r.pointer("indirect");
+    net = with_heads(net, ptr + "/network", Json::array({{{"n_dims", 3 * n_sh}, {"activation", "None"}}}));
+    Json nested = Json::array({{{"type", "Identity"}, {"n_dims_to_encode", s.n_features}}});
+    if (s.light_conditioned) nested.push_back(lenc);
+    auto e = nn::create_encoding({{"type", "Composite"}, {"nested", nested}},
+                                 s.n_features + (s.light_conditioned ? 3 : 0), ptr + "/light_encoding");
+    auto n = nn::create_network(net, e->n_output_dims(), 3 * n_sh, ptr + "/network");
+    m_indirect = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
+    Json res{{"light_encoding", m_indirect->encoding().hyperparams()["nested"].back()},
+             {"network", strip_heads(m_indirect->network().hyperparams())}};
+    if (!s.light_conditioned) res["light_encoding"] = lenc;
+    res["light_encoding"].erase("n_dims_to_encode");
+    r.set_resolved("indirect", res);
+  } else {
+    r.sub("indirect", default_indirect(), "object", "indirect SH head h_θ: {light_encoding, network}");
+  }
+  // Visibility network: [position, direction] → V.
+  {
+    SubConfig sub(r, "visibility", default_visibility(),
+                  "visibility network V_ψ: {position_encoding, direction_encoding, network}");
+    Json penc = sub.component("position_encoding", default_visibility(), "position encoding (3 dims)");
+    Json denc = sub.component("direction_encoding", default_visibility(), "direction encoding (3 dims)");
+    Json net = sub.component("network", default_visibility(), "the MLP (output: one sigmoid)");
+    sub.reader.finish();
+    const std::string ptr = r.pointer("visibility");
+    net = with_heads(net, ptr + "/network", Json::array({{{"n_dims", 1}, {"activation", "Sigmoid"}}}));
+    penc["n_dims_to_encode"] = 3;
+    denc["n_dims_to_encode"] = 3;
+    auto e = nn::create_encoding({{"type", "Composite"}, {"nested", {penc, denc}}}, 6, ptr);
+    auto n = nn::create_network(net, e->n_output_dims(), 1, ptr + "/network");
+    m_visibility = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
+    const Json nested = m_visibility->encoding().hyperparams()["nested"];
+    Json res{{"position_encoding", nested[0]}, {"direction_encoding", nested[1]},
+             {"network", strip_heads(m_visibility->network().hyperparams())}};
+    res["position_encoding"].erase("n_dims_to_encode");
+    res["direction_encoding"].erase("n_dims_to_encode");
+    r.set_resolved("visibility", res);
+  }
+  r.finish();
+  m_resolved = r.resolved();
+
+  m_renderer = std::make_unique<render::VolumeRenderer>(device, s.renderer);
+  m_params = Buffer<float>(device, n_params());
+  m_grads = Buffer<float>(device, n_params());
+  m_vis_params = Buffer<float>(device, n_vis_params());
+  m_vis_grads = Buffer<float>(device, n_vis_params());
+  m_grads.fill(0.0f);
+  m_vis_grads.fill(0.0f);
+  const int g = static_cast<int>(s.grid_resolution);
+  m_grid.dims = {g, g, g};
+  m_grid.sigma = Buffer<float>(device, std::size_t(g) * g * g);
+  m_grid.sigma.fill(0.0f);
+  initialize(0);
+}
+
+std::uint32_t Ours::n_params() const { return m_property->n_params() + (m_indirect ? m_indirect->n_params() : 0); }
+std::uint32_t Ours::n_vis_params() const { return m_visibility->n_params(); }
+
+void Ours::initialize(std::uint64_t seed) {
+  std::vector<float> theta(n_params()), psi(n_vis_params());
+  m_property->initialize_params(theta.data(), seed);
+  if (m_indirect) m_indirect->initialize_params(theta.data() + m_property->n_params(), seed + 1000);
+  m_visibility->initialize_params(psi.data(), seed + 2000);
+  m_params.write(theta);
+  m_vis_params.write(psi);
+}
+
+void Ours::prepare(OursPass& pass, std::uint32_t n_rays) const {
+  const std::uint32_t n = n_rays * m_settings.renderer.n_samples;
+  const std::uint32_t n_sh = m_renderer->n_sh();
+  const std::uint32_t prop_out = kPropHeads + m_settings.n_features;
+  const std::uint32_t light_cols = m_settings.n_features + (m_settings.light_conditioned ? 3 : 0);
+  auto ensure = [&](Buffer<float>& b, std::size_t count) {
+    if (b.size() < count) b = Buffer<float>(m_device, count);
+  };
+  auto matrix = [&](nn::BatchMatrix& m, std::uint32_t cols) {
+    if (m.cols() != cols) m = nn::BatchMatrix(m_device, n, cols);
+    m.resize(n);
+  };
+  ensure(pass.t, n);
+  ensure(pass.delta, n);
+  ensure(pass.color, 3 * std::size_t(n_rays));
+  ensure(pass.transmittance, n_rays);
+  matrix(pass.positions, 3);
+  matrix(pass.props_raw, prop_out);
+  matrix(pass.vis_in, 6);
+  matrix(pass.vis, 1);
+  matrix(pass.props, m_renderer->prop_cols());
+  matrix(pass.radiance, 3);
+  matrix(pass.d_props, m_renderer->prop_cols());
+  matrix(pass.d_radiance, 3);
+  matrix(pass.d_props_raw, prop_out);
+  matrix(pass.net_pos, 3);
+  if (n_sh > 0) {
+    matrix(pass.light_in, light_cols);
+    matrix(pass.indirect_raw, 3 * n_sh);
+    matrix(pass.d_indirect_raw, 3 * n_sh);
+    matrix(pass.d_light_in, light_cols);
+  }
+  if (!pass.ws_property) {
+    pass.ws_property = m_property->make_workspace(m_device);
+    if (m_indirect) pass.ws_indirect = m_indirect->make_workspace(m_device);
+    pass.ws_visibility = m_visibility->make_workspace(m_device);
+  }
+  pass.n_rays = n_rays;
+}
+
+void Ours::forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bool training, std::uint32_t seed,
+                   const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, bool march,
+                   StageTimer* timer) const {
+  prepare(pass, n_rays);
+  const std::uint32_t spr = m_settings.renderer.n_samples;
+  const std::uint32_t n = n_rays * spr;
+  const std::uint32_t n_sh = m_renderer->n_sh();
+  m_renderer->sample(rays, n_rays, training, seed, pass.t, pass.delta, pass.positions);
+  const std::uint32_t light_cols = n_sh > 0 ? pass.light_in.cols() : 0;
+  Buffer<float>& light_data = n_sh > 0 ? pass.light_in.data() : pass.vis_in.data();
+  m_device.kernel("method.cl", "light_inputs")
+      .args(n, spr, rays, pass.positions.data(), m_light_scale, pass.net_pos.data(), light_data,
+            m_settings.light_conditioned ? light_cols : 0u, m_settings.n_features, pass.vis_in.data())
+      .launch(n, 64);
+  mark(timer, "sampling");
+  const nn::ConstParamSlice theta{&m_params, 0};
+  const nn::ConstParamSlice theta_sh{&m_params, m_property->n_params()};
+  const nn::ConstParamSlice psi{&m_vis_params, 0};
+  if (training) m_property->forward(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
+  else m_property->inference(m_device, theta, pass.net_pos, pass.props_raw);
+  nn::copy_columns(m_device, pass.props_raw, 0, pass.props, render::kSigma, 4);  // sigma, albedo
+  nn::copy_columns(m_device, pass.props_raw, 4, pass.props, render::kG, 1, 0.95f);
+  mark(timer, "property net forward");
+  if (march) {
+    render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps, pass.vis);
+  } else if (training) {
+    m_visibility->forward(m_device, psi, pass.vis_in, pass.vis, *pass.ws_visibility);
+  } else {
+    m_visibility->inference(m_device, psi, pass.vis_in, pass.vis);
+  }
+  nn::copy_columns(m_device, pass.vis, 0, pass.props, render::kVisibility, 1);
+  mark(timer, "visibility net forward");
+  if (n_sh > 0) {
+    nn::copy_columns(m_device, pass.props_raw, kPropHeads, pass.light_in, 0, m_settings.n_features);
+    if (training) m_indirect->forward(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
+    else m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw);
+    nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,
+                                   1.0f / m_settings.intensity_reference);
+    mark(timer, "SH head forward");
+  }
+  m_renderer->forward(rays, n_rays, pass.t, pass.delta, pass.props, dirs, sh_basis, pass.radiance, pass.color,
+                      pass.transmittance);
+  mark(timer, "lighting + compositing forward");
+}
+
+void Ours::backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMatrix& dirs,
+                    const nn::BatchMatrix& sh_basis, const Buffer<float>& d_color, StageTimer* timer) {
+  check_pass(pass, "backward");
+  const std::uint32_t spr = m_settings.renderer.n_samples;
+  const std::uint32_t n_sh = m_renderer->n_sh();
+  m_renderer->backward(rays, pass.n_rays, pass.t, pass.delta, pass.props, dirs, sh_basis, pass.radiance, pass.color,
+                       d_color, pass.d_radiance, pass.d_props);
+  mark(timer, "lighting + compositing backward");
+  // No SH head: the features receive no gradient.
+  if (n_sh == 0) pass.d_props_raw.data().fill(0.0f);
+  // d props_raw: sigma and albedo as they are, g through the 0.95 scale, features from the SH head.
+  nn::copy_columns(m_device, pass.d_props, render::kSigma, pass.d_props_raw, 0, 4);
+  nn::copy_columns(m_device, pass.d_props, render::kG, pass.d_props_raw, 4, 1, 0.95f);
+  if (n_sh > 0) {
+    nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.d_props, render::kSH, pass.d_indirect_raw, 0, n_sh,
+                                   1.0f / m_settings.intensity_reference);
+    m_indirect->backward(m_device, {&m_params, m_property->n_params()}, pass.light_in, pass.indirect_raw,
+                         pass.d_indirect_raw, {&m_grads, m_property->n_params()}, false, &pass.d_light_in,
+                         *pass.ws_indirect);
+    nn::copy_columns(m_device, pass.d_light_in, 0, pass.d_props_raw, kPropHeads, m_settings.n_features);
+    mark(timer, "SH head backward");
+  }
+  m_property->backward(m_device, {&m_params, 0}, pass.net_pos, pass.props_raw, pass.d_props_raw, {&m_grads, 0}, false,
+                       nullptr, *pass.ws_property);
+  mark(timer, "property net backward");
+}
+
+void Ours::visibility_targets(const OursPass& pass, const Buffer<float>& rays, nn::BatchMatrix& targets) const {
+  check_pass(pass, "visibility_targets");
+  if (targets.cols() != 1) targets = nn::BatchMatrix(m_device, pass.vis.batch(), 1);
+  targets.resize(pass.vis.batch());
+  render::march_visibility(m_device, rays, pass.n_rays, m_settings.renderer.n_samples, pass.positions, m_grid,
+                           m_settings.march_steps, targets);
+}
+
+void Ours::visibility_backward(OursPass& pass, const nn::BatchMatrix& d_vis) {
+  check_pass(pass, "visibility_backward");
+  m_visibility->backward(m_device, {&m_vis_params, 0}, pass.vis_in, pass.vis, d_vis, {&m_vis_grads, 0}, false, nullptr,
+                         *pass.ws_visibility);
+}
+
+void Ours::refresh_density_grid() {
+  const auto& d = m_grid.dims;
+  const std::uint32_t total = std::uint32_t(d[0]) * d[1] * d[2];
+  const std::uint32_t chunk = std::min<std::uint32_t>(total, 1u << 17);
+  if (m_grid_positions.cols() != 3) {
+    m_grid_positions = nn::BatchMatrix(m_device, chunk, 3);
+    m_grid_props = nn::BatchMatrix(m_device, chunk, kPropHeads + m_settings.n_features);
+  }
+  for (std::uint32_t first = 0; first < total; first += chunk) {
+    const std::uint32_t n = std::min(chunk, total - first);
+    m_grid_positions.resize(n);
+    m_grid_props.resize(n);
+    m_device.kernel("method.cl", "grid_positions").args(n, first, d[0], d[1], d[2], m_grid_positions.data()).launch(n, 64);
+    m_property->inference(m_device, {&m_params, 0}, m_grid_positions, m_grid_props);
+    m_device.kernel("method.cl", "column_to_flat")
+        .args(n, m_grid_props.cols(), 0u, m_grid_props.data(), m_grid.sigma, first)
+        .launch(n, 64);
+  }
+}
+
+}  // namespace relit::method
