@@ -124,6 +124,8 @@ Ours::Ours(const Device& device, const Json& config, const std::string& pointer)
     s.grid_resolution = gr.uint("resolution", 64, 4, 512, "voxels per axis");
     s.grid_refresh = gr.uint("refresh_every", 16, 1, 1u << 20, "training steps between refreshes from the property net");
     s.march_steps = gr.uint("march_steps", 64, 1, 4096, "midpoint steps of each visibility-target march");
+    s.visibility_fraction = gr.number("visibility_fraction", 0.25f, 1e-3f, 1.0f,
+                                      "share of each batch's rays whose samples train the visibility net");
     gr.finish();
     r.set_resolved("density_grid", gr.resolved());
   }
@@ -287,8 +289,6 @@ void Ours::forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bo
   mark(timer, "property net forward");
   if (march) {
     render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps, pass.vis);
-  } else if (training) {
-    m_visibility->forward(m_device, psi, pass.vis_in, pass.vis, *pass.ws_visibility);
   } else {
     m_visibility->inference(m_device, psi, pass.vis_in, pass.vis);
   }
@@ -334,18 +334,34 @@ void Ours::backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMa
   mark(timer, "property net backward");
 }
 
-void Ours::visibility_targets(const OursPass& pass, const Buffer<float>& rays, nn::BatchMatrix& targets) const {
-  check_pass(pass, "visibility_targets");
-  if (targets.cols() != 1) targets = nn::BatchMatrix(m_device, pass.vis.batch(), 1);
-  targets.resize(pass.vis.batch());
-  render::march_visibility(m_device, rays, pass.n_rays, m_settings.renderer.n_samples, pass.positions, m_grid,
-                           m_settings.march_steps, targets);
-}
-
-void Ours::visibility_backward(OursPass& pass, const nn::BatchMatrix& d_vis) {
-  check_pass(pass, "visibility_backward");
-  m_visibility->backward(m_device, {&m_vis_params, 0}, pass.vis_in, pass.vis, d_vis, {&m_vis_grads, 0}, false, nullptr,
+void Ours::visibility_step(OursPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
+                           float weight, StageTimer* timer) {
+  check_pass(pass, "visibility_step");
+  const std::uint32_t spr = m_settings.renderer.n_samples;
+  const auto n_sub = std::max<std::uint32_t>(
+      1, std::min(pass.n_rays, static_cast<std::uint32_t>(pass.n_rays * double(m_settings.visibility_fraction) + 0.5)));
+  const std::uint32_t m = n_sub * spr;
+  auto matrix = [&](nn::BatchMatrix& mat, std::uint32_t cols) {
+    if (mat.cols() != cols) mat = nn::BatchMatrix(m_device, m, cols);
+    mat.resize(m);
+  };
+  matrix(pass.vis_in_sub, 6);
+  matrix(pass.positions_sub, 3);
+  matrix(pass.vis_sub, 1);
+  matrix(pass.vis_target, 1);
+  matrix(pass.d_vis, 1);
+  // The first m samples of a tiled matrix are its first m * cols floats (m is a multiple of 16).
+  pass.vis_in_sub.data().copy_from(pass.vis_in.data(), std::size_t(m) * 6);
+  pass.positions_sub.data().copy_from(pass.positions.data(), std::size_t(m) * 3);
+  render::march_visibility(m_device, rays, n_sub, spr, pass.positions_sub, m_grid, m_settings.march_steps,
+                           pass.vis_target);
+  mark(timer, "visibility targets (march)");
+  const nn::ConstParamSlice psi{&m_vis_params, 0};
+  m_visibility->forward(m_device, psi, pass.vis_in_sub, pass.vis_sub, *pass.ws_visibility);
+  loss.evaluate(m_device, pass.vis_sub, pass.vis_target, pass.d_vis, value, weight);
+  m_visibility->backward(m_device, psi, pass.vis_in_sub, pass.vis_sub, pass.d_vis, {&m_vis_grads, 0}, false, nullptr,
                          *pass.ws_visibility);
+  mark(timer, "visibility net training");
 }
 
 void Ours::refresh_density_grid() {

@@ -205,8 +205,6 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
   m_color_t = nn::BatchMatrix(device, b, 3);
   m_target_t = nn::BatchMatrix(device, b, 3);
   m_d_color_t = nn::BatchMatrix(device, b, 3);
-  m_vis_target = nn::BatchMatrix(device, b * rs.n_samples, 1);
-  m_d_vis = nn::BatchMatrix(device, b * rs.n_samples, 1);
 }
 
 void Trainer::set_output(const std::string& dir) {
@@ -235,12 +233,7 @@ void Trainer::step() {
   if (timer) timer->mark("render loss");
   m_model->backward(m_pass, m_ray_buf, m_indirect->dirs(), m_indirect->basis(), m_d_color, timer);
   // Visibility loss against the density march (constants: θ gets nothing), backward into ψ only.
-  m_model->visibility_targets(m_pass, m_ray_buf, m_vis_target);
-  if (timer) timer->mark("visibility targets (march)");
-  m_d_vis.resize(m_pass.vis.batch());
-  m_vis_loss->evaluate(m_device, m_pass.vis, m_vis_target, m_d_vis, m_vis_loss_value, s.visibility_loss_weight);
-  m_model->visibility_backward(m_pass, m_d_vis);
-  if (timer) timer->mark("visibility net backward");
+  m_model->visibility_step(m_pass, m_ray_buf, *m_vis_loss, m_vis_loss_value, s.visibility_loss_weight, timer);
   m_device.kernel("method.cl", "step_guard").args(m_loss_value, m_vis_loss_value, m_guard, m_skipped).launch(1, 1);
   m_optimizer->step(m_model->params(), m_model->grads());
   m_vis_optimizer->step(m_model->vis_params(), m_model->vis_grads());

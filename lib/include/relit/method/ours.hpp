@@ -15,6 +15,7 @@
 #pragma once
 
 #include <relit/config.hpp>
+#include <relit/nn/loss.hpp>
 #include <relit/nn/module.hpp>
 #include <relit/nn/network_with_encoding.hpp>
 #include <relit/render/visibility.hpp>
@@ -36,6 +37,7 @@ struct OursSettings {
   std::uint32_t grid_resolution = 64;     ///< density grid for visibility targets (per axis)
   std::uint32_t grid_refresh = 16;        ///< refresh the grid every this many training steps
   std::uint32_t march_steps = 64;         ///< midpoint steps of the visibility-target march
+  float visibility_fraction = 0.25f;      ///< share of a batch's rays whose samples train the visibility net
   std::string inference_visibility = "network";  ///< "network" (as the paper) or "march" (density grid)
 };
 
@@ -64,6 +66,7 @@ struct OursPass {
   Buffer<float> t, delta, color, transmittance;
   nn::BatchMatrix positions, net_pos, props_raw, light_in, indirect_raw, vis_in, vis, props, radiance;
   nn::BatchMatrix d_props, d_radiance, d_props_raw, d_indirect_raw, d_light_in;
+  nn::BatchMatrix vis_in_sub, positions_sub, vis_sub, vis_target, d_vis;  // the visibility net's training subset
   std::unique_ptr<nn::Workspace> ws_property, ws_indirect, ws_visibility;
 };
 
@@ -110,11 +113,11 @@ class Ours {
   void backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis,
                 const Buffer<float>& d_color, StageTimer* timer = nullptr);
 
-  /// The visibility network's training targets for the pass's samples: exp(-optical depth) toward the light
-  /// through the density grid (n_samples x 1).
-  void visibility_targets(const OursPass& pass, const Buffer<float>& rays, nn::BatchMatrix& targets) const;
-  /// Given dL/dV for the pass's visibility output: writes dL/dψ into vis_grads() (overwriting). θ gets nothing.
-  void visibility_backward(OursPass& pass, const nn::BatchMatrix& d_vis);
+  /// One visibility-network gradient: on the samples of the pass's first visibility_fraction of rays, the
+  /// loss of V_ψ against the transmittance of the density grid toward the light (constants, so θ gets
+  /// nothing). Writes dL/dψ into vis_grads() (overwriting) and the mean loss into `value` (on the device).
+  void visibility_step(OursPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
+                       float weight = 1.0f, StageTimer* timer = nullptr);
 
   /// Re-evaluates the density grid from the current θ (the property net's σ at the voxel centres).
   void refresh_density_grid();

@@ -132,7 +132,7 @@ class Trainer {
   OursPass m_pass;
   Buffer<float> m_ray_buf, m_targets, m_d_color, m_loss_value, m_vis_loss_value, m_guard;
   Buffer<std::uint32_t> m_pixel_ids, m_skipped;
-  nn::BatchMatrix m_color_t, m_target_t, m_d_color_t, m_vis_target, m_d_vis;
+  nn::BatchMatrix m_color_t, m_target_t, m_d_color_t;
   std::uint64_t m_step = 0;
   double m_val_psnr = std::numeric_limits<double>::quiet_NaN();
   StageTimer m_timer;

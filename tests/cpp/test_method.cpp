@@ -1,0 +1,305 @@
+// The "Ours" model and its trainer: end-to-end gradients against finite differences, gradient isolation,
+// linearity in the light's intensity, the NaN/Inf guard, deterministic resume, presets and config errors.
+#include "test_support.hpp"
+
+#include <relit/dataset.hpp>
+#include <relit/io/checkpoint.hpp>
+#include <relit/method/trainer.hpp>
+#include <relit/nn/registry.hpp>
+#include <relit/render/rays.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <random>
+
+namespace relit {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Small smooth networks (frequency encodings, no hash grid) so that finite differences are meaningful.
+Json tiny_model(const std::string& sh = "1") {
+  const Json mlp = {{"type", "FullyFusedMLP"}, {"n_neurons", 16}, {"n_hidden_layers", 1}};
+  const Json freq = {{"type", "Frequency"}, {"n_frequencies", 2}, {"include_input", true}};
+  return {{"renderer", {{"n_samples", 16}, {"sh", sh}, {"n_dirs", 8}}},
+          {"n_features", 4},
+          {"density_grid", {{"resolution", 8}, {"march_steps", 16}}},
+          {"property", {{"encoding", freq}, {"network", mlp}}},
+          {"indirect", {{"light_encoding", freq}, {"network", mlp}}},
+          {"visibility", {{"position_encoding", freq}, {"direction_encoding", freq}, {"network", mlp}}}};
+}
+
+struct Scene1 {
+  Camera camera = Camera::look_at({0.3f, -3.5f, 1.0f}, {0, 0, 0}, {0, 0, 1}, 0.7f, 4, 4);
+  PointLight light{{2.0f, -2.0f, 3.0f}, {500.0f, 400.0f, 300.0f}};
+};
+
+// sum_j w_j colour_j over the rays of the tiny image, in double.
+double weighted_colour(method::Ours& model, method::OursPass& pass, Buffer<float>& rays, std::uint32_t n,
+                       render::IndirectBasis& basis, const std::vector<float>& w) {
+  model.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis());
+  const auto c = pass.color.read();
+  double sum = 0;
+  for (std::size_t j = 0; j < w.size(); ++j) sum += double(w[j]) * c[j];
+  return sum;
+}
+
+TEST(Method, RenderGradientMatchesFiniteDifferencesEndToEnd) {
+  const Device dev = test::test_device();
+  for (const std::string sh : {"none", "1"}) {
+    SCOPED_TRACE("sh " + sh);
+    method::Ours model(dev, tiny_model(sh));
+    model.initialize(11);
+    // Denser start so that the medium is not transparent, and light at the working intensity.
+    Scene1 sc;
+    const std::uint32_t n = 16;
+    Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
+    render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
+    render::IndirectBasis basis(dev, 8, model.settings().renderer.sh_lmax);
+    basis.draw(1, 0);
+    method::OursPass pass;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    std::vector<float> w(3 * n);
+    for (auto& x : w) x = u(rng);
+    weighted_colour(model, pass, rays, n, basis, w);
+    Buffer<float> d_color(dev, w);
+    model.backward(pass, rays, basis.dirs(), basis.basis(), d_color);
+    const auto grads = model.grads().read();
+    auto params = model.params().read();
+    ASSERT_EQ(grads.size(), params.size());
+    // Check the largest-gradient parameters and a random sample of the rest.
+    std::vector<std::size_t> order(params.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::partial_sort(order.begin(), order.begin() + 12, order.end(),
+                      [&](std::size_t a, std::size_t b) { return std::fabs(grads[a]) > std::fabs(grads[b]); });
+    std::vector<std::size_t> picks(order.begin(), order.begin() + 12);
+    for (int k = 0; k < 12; ++k) picks.push_back(rng() % params.size());
+    double max_g = 0;
+    for (float g : grads) max_g = std::max(max_g, double(std::fabs(g)));
+    ASSERT_GT(max_g, 0.0);
+    int checked = 0;
+    for (std::size_t i : picks) {
+      const float p0 = params[i];
+      const float h = 1e-2f * std::max(1.0f, std::fabs(p0));
+      params[i] = p0 + h;
+      model.params().write(params);
+      const double fp = weighted_colour(model, pass, rays, n, basis, w);
+      params[i] = p0 - h;
+      model.params().write(params);
+      const double fm = weighted_colour(model, pass, rays, n, basis, w);
+      params[i] = p0;
+      model.params().write(params);
+      const double fd = (fp - fm) / (2.0 * h);
+      EXPECT_NEAR(grads[i], fd, 2e-2 * max_g + 2e-2 * std::fabs(fd)) << "parameter " << i;
+      ++checked;
+    }
+    EXPECT_EQ(checked, 24);
+  }
+}
+
+TEST(Method, GradientsAreIsolatedBothWays) {
+  const Device dev = test::test_device();
+  method::Ours model(dev, tiny_model());
+  Scene1 sc;
+  const std::uint32_t n = 16;
+  Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
+  render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
+  render::IndirectBasis basis(dev, 8, 1);
+  basis.draw(1, 0);
+  method::OursPass pass;
+  model.refresh_density_grid();
+  model.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis());
+  // The render loss does not reach the visibility network...
+  model.vis_grads().fill(123.0f);
+  Buffer<float> d_color(dev, std::vector<float>(3 * n, 1.0f));
+  model.backward(pass, rays, basis.dirs(), basis.basis(), d_color);
+  for (float g : model.vis_grads().read()) ASSERT_EQ(g, 123.0f);
+  // ...and the visibility loss does not reach θ, while it does reach ψ.
+  model.grads().fill(-7.0f);
+  auto loss = nn::create_loss({{"type", "L2"}});
+  Buffer<float> value(dev, 1);
+  model.visibility_step(pass, rays, *loss, value);
+  for (float g : model.grads().read()) ASSERT_EQ(g, -7.0f);
+  double norm = 0;
+  for (float g : model.vis_grads().read()) norm += std::fabs(g);
+  EXPECT_GT(norm, 0.0);
+  EXPECT_TRUE(std::isfinite(value.read()[0]));
+}
+
+TEST(Method, RadianceIsLinearInTheLightIntensity) {
+  // Direct light is I V p / r^2 and the SH head's output is scaled by I, so doubling I doubles every pixel.
+  const Device dev = test::test_device();
+  method::Ours model(dev, tiny_model("2"));
+  model.initialize(4);
+  Scene1 sc;
+  const Image a = method::render_image(model, sc.camera, sc.light);
+  PointLight twice = sc.light;
+  for (auto& i : twice.intensity) i *= 2.0f;
+  const Image b = method::render_image(model, sc.camera, twice);
+  double total = 0;
+  for (std::size_t k = 0; k < a.pixels.size(); ++k) {
+    EXPECT_NEAR(b.pixels[k], 2.0f * a.pixels[k], 1e-5f * (1.0f + std::fabs(b.pixels[k])));
+    total += a.pixels[k];
+  }
+  EXPECT_GT(total, 0.0);
+}
+
+TEST(Method, InferenceVisibilityCanMarchTheDensityGrid) {
+  const Device dev = test::test_device();
+  method::Ours model(dev, tiny_model());
+  model.initialize(2);
+  model.refresh_density_grid();
+  Scene1 sc;
+  method::RenderSettings net, march;
+  march.visibility = "march";
+  const Image a = method::render_image(model, sc.camera, sc.light, net);
+  const Image b = method::render_image(model, sc.camera, sc.light, march);
+  // Different visibility gives a different image; both finite.
+  double diff = 0;
+  for (std::size_t k = 0; k < a.pixels.size(); ++k) {
+    ASSERT_TRUE(std::isfinite(a.pixels[k]) && std::isfinite(b.pixels[k]));
+    diff += std::fabs(a.pixels[k] - b.pixels[k]);
+  }
+  EXPECT_GT(diff, 0.0);
+  march.visibility = "sometimes";
+  EXPECT_THROW(method::render_image(model, sc.camera, sc.light, march), InvalidArgument);
+}
+
+TEST(Method, ConfigErrorsNameTheKey) {
+  const Device dev = test::test_device();
+  Json bad = tiny_model();
+  bad["colour"] = 1;
+  try {
+    method::Ours m(dev, bad);
+    FAIL() << "unknown key accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("/model/colour"), std::string::npos) << e.what();
+  }
+  bad = tiny_model();
+  bad["property"]["network"]["output_heads"] = Json::array();
+  EXPECT_THROW(method::Ours(dev, bad), ConfigError);
+  bad = tiny_model();
+  bad["renderer"]["n_samples"] = 20;
+  EXPECT_THROW(method::Ours(dev, bad), ConfigError);
+  bad = tiny_model();
+  bad["renderer"]["sh"] = "12";
+  EXPECT_THROW(method::Ours(dev, bad), ConfigError);
+  EXPECT_THROW(method::preset("fastest"), InvalidArgument);
+  EXPECT_THROW(method::load_run_config("/nonexistent/run.json"), IOError);
+}
+
+TEST(Method, PresetsBuildAndResolveToThemselves) {
+  const Device dev = test::test_device();
+  const auto names = method::preset_names();
+  EXPECT_NE(std::find(names.begin(), names.end(), "fast"), names.end());
+  EXPECT_NE(std::find(names.begin(), names.end(), "paper"), names.end());
+  for (const auto& name : names) {
+    SCOPED_TRACE(name);
+    const Json cfg = method::preset(name);
+    method::Ours model(dev, cfg.at("model"));
+    method::Ours again(dev, model.hyperparams());
+    EXPECT_EQ(again.hyperparams(), model.hyperparams());
+    EXPECT_EQ(again.n_params(), model.n_params());
+  }
+}
+
+// ---- the trainer, on a tiny generated dataset ----------------------------------------------------------------
+
+class MethodTrainer : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    s_dir = new test::TempDir("method");
+    DatasetSettings s;
+    s.resolution = 12;
+    s.train = 4;
+    s.val = 1;
+    s.test = 1;
+    s.spp = 2;
+    s.seed = 3;
+    generate_dataset(test::test_device(), Scene::from_json(Scene::builtin_json("cloud", 1, 16)), dataset(), s);
+  }
+  static void TearDownTestSuite() {
+    delete s_dir;
+    s_dir = nullptr;
+  }
+  static std::string dataset() { return (s_dir->path() / "ds").string(); }
+  static Json config() {
+    return {{"model", tiny_model()},
+            {"training", {{"batch_rays", 64}, {"validate_every", 0}, {"checkpoint_every", 0}, {"log_every", 2}}}};
+  }
+  static test::TempDir* s_dir;
+};
+test::TempDir* MethodTrainer::s_dir = nullptr;
+
+TEST_F(MethodTrainer, ResumeGivesTheSameParametersAsAnUninterruptedRun) {
+  const Device dev = test::test_device();
+  method::Trainer straight(dev, dataset(), config());
+  straight.run(6);
+  test::TempDir out("run");
+  method::Trainer first(dev, dataset(), config());
+  first.set_output(out.path().string());
+  first.run(3);
+  ASSERT_TRUE(fs::exists(out.path() / "checkpoint.relit"));
+  ASSERT_TRUE(fs::exists(out.path() / "config.json"));
+  ASSERT_TRUE(fs::exists(out.path() / "log.jsonl"));
+  method::Trainer resumed(dev, dataset(), config());
+  resumed.load_checkpoint((out.path() / "checkpoint.relit").string());
+  EXPECT_EQ(resumed.steps(), 3u);
+  resumed.run(3);
+  EXPECT_EQ(resumed.model().params().read(), straight.model().params().read());
+  EXPECT_EQ(resumed.model().vis_params().read(), straight.model().vis_params().read());
+  // The checkpoint reloads as a model that renders like the trainer's.
+  const auto model = method::load_model(dev, (out.path() / "checkpoint.relit").string());
+  Scene1 sc;
+  EXPECT_EQ(method::render_image(*model, sc.camera, sc.light).pixels,
+            method::render_image(first.model(), sc.camera, sc.light).pixels);
+  // Another config is refused.
+  Json other = config();
+  other["model"]["n_features"] = 5;
+  method::Trainer wrong(dev, dataset(), other);
+  EXPECT_THROW(wrong.load_checkpoint((out.path() / "checkpoint.relit").string()), InvalidArgument);
+}
+
+TEST_F(MethodTrainer, TrainingLowersTheLoss) {
+  const Device dev = test::test_device();
+  Json cfg = config();
+  cfg["training"]["batch_rays"] = 256;
+  method::Trainer t(dev, dataset(), cfg);
+  t.step();
+  const double first = t.stats().loss;
+  const auto s = t.run(80);
+  EXPECT_TRUE(std::isfinite(first));
+  EXPECT_LT(s.loss, 0.5 * first);
+  EXPECT_EQ(s.skipped, 0u);
+  EXPECT_EQ(s.step, 81u);
+}
+
+TEST_F(MethodTrainer, NonFiniteStepsAreSkippedAndCounted) {
+  const Device dev = test::test_device();
+  method::Trainer t(dev, dataset(), config());
+  t.run(2);
+  // (A NaN weight in front of a ReLU can vanish — fmax(NaN, 0) is 0 — so poison every parameter.)
+  t.model().params().fill(std::nanf(""));
+  const auto psi = t.model().vis_params().read();
+  const auto s = t.run(2);
+  EXPECT_EQ(s.skipped, 2u);
+  EXPECT_FALSE(std::isfinite(s.loss));
+  EXPECT_EQ(t.model().vis_params().read(), psi);  // both optimisers skipped the steps
+}
+
+TEST_F(MethodTrainer, BadDatasetsAreClearErrors) {
+  const Device dev = test::test_device();
+  EXPECT_THROW(method::Trainer(dev, "/nonexistent/dataset", config()), IOError);
+  Json bad = config();
+  bad["training"]["batch_rays"] = 0;
+  EXPECT_THROW(method::Trainer(dev, dataset(), bad), ConfigError);
+  bad = config();
+  bad["method"] = "nerf";
+  EXPECT_THROW(method::Trainer(dev, dataset(), bad), ConfigError);
+}
+
+}  // namespace
+}  // namespace relit
