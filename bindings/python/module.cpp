@@ -10,4 +10,5 @@ PYBIND11_MODULE(_core, m) {
   relit::python::bind_nn(m);
   relit::python::bind_metrics(m);
   relit::python::bind_scene(m);
+  relit::python::bind_method(m);
 }

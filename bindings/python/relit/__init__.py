@@ -31,3 +31,8 @@ __all__ = [
 from ._core import Camera, PointLight, Progress, Scene, generate_dataset, render_reference  # noqa: F401,E402
 
 __all__ += ["Camera", "PointLight", "Progress", "Scene", "generate_dataset", "render_reference"]
+
+# The method: training and relighting.
+from ._core import Model, Trainer, TrainStats, preset, presets  # noqa: F401,E402
+
+__all__ += ["Model", "Trainer", "TrainStats", "preset", "presets"]

@@ -1,0 +1,147 @@
+// Python binding of the method: training and relighting.
+//   trainer = relit.Trainer("data/cloud", config="fast", out="runs/cloud")
+//   for stats in trainer.run(3000):               # a TrainStats every training.log_every steps
+//       print(stats.step, stats.loss, stats.val_psnr)
+//   img = trainer.model.render(camera, relit.PointLight((0, -3, 3), 800))   # (H, W, 3) float32, linear
+//   model = relit.Model.load("runs/cloud/checkpoint.relit")
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "bindings.hpp"
+
+#include <relit/method/trainer.hpp>
+
+#include <algorithm>
+
+namespace py = pybind11;
+
+namespace relit::python {
+
+namespace {
+
+Json to_json(const py::handle& obj) {
+  return Json::parse(py::module_::import("json").attr("dumps")(obj).cast<std::string>());
+}
+py::object from_json(const Json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
+
+Device pick(const py::object& device) {
+  if (device.is_none()) return Device::select("");
+  if (py::isinstance<Device>(device)) return device.cast<Device>();
+  return Device::select(device.cast<std::string>());
+}
+
+Json config_from(const py::object& config) {
+  if (py::isinstance<py::str>(config)) return method::load_run_config(config.cast<std::string>());
+  if (py::isinstance<py::dict>(config)) return to_json(config);
+  throw InvalidArgument("config must be a preset name, a .json path or a dict");
+}
+
+// `for stats in trainer.run(n)`: trains in chunks of training.log_every steps, yielding after each.
+struct RunIterator {
+  method::Trainer* trainer;
+  std::uint64_t target;
+  std::uint64_t every;
+  method::TrainStats next() {
+    if (trainer->steps() >= target) throw py::stop_iteration();
+    const std::uint64_t to = std::min(target, trainer->steps() + every);
+    py::gil_scoped_release release;
+    auto s = trainer->run_until(to);
+    s.target = target;
+    return s;
+  }
+};
+
+PointLight light_from(const py::object& light) {
+  if (py::isinstance<PointLight>(light)) return light.cast<PointLight>();
+  throw InvalidArgument("light must be a relit.PointLight");
+}
+
+py::array_t<float> render(const method::Ours& model, const Camera& camera, const py::object& light,
+                          const std::string& visibility, std::uint32_t seed) {
+  const PointLight l = light_from(light);
+  method::RenderSettings rs;
+  rs.visibility = visibility;
+  rs.seed = seed;
+  Image img;
+  {
+    py::gil_scoped_release release;
+    img = method::render_image(model, camera, l, rs);
+  }
+  py::array_t<float> a({img.height, img.width, img.channels});
+  std::copy(img.pixels.begin(), img.pixels.end(), a.mutable_data());
+  return a;
+}
+
+}  // namespace
+
+void bind_method(py::module_& m) {
+  m.def("presets", &method::preset_names, "Names of the built-in run configs (\"fast\", \"paper\").");
+  m.def(
+      "preset", [](const std::string& name) { return from_json(method::preset(name)); }, py::arg("name"),
+      "A built-in run config as a dict (edit it and pass it to relit.Trainer).");
+
+  py::class_<method::TrainStats>(m, "TrainStats", "Where training stands (what `relit train` prints).")
+      .def_readonly("step", &method::TrainStats::step)
+      .def_readonly("target", &method::TrainStats::target)
+      .def_readonly("loss", &method::TrainStats::loss, "render loss of the last step")
+      .def_readonly("visibility_loss", &method::TrainStats::visibility_loss)
+      .def_readonly("val_psnr", &method::TrainStats::val_psnr, "last validation PSNR in dB (nan before any)")
+      .def_readonly("steps_per_second", &method::TrainStats::steps_per_second)
+      .def_readonly("elapsed", &method::TrainStats::elapsed, "seconds")
+      .def_readonly("eta", &method::TrainStats::eta, "seconds")
+      .def_readonly("learning_rate", &method::TrainStats::learning_rate)
+      .def_readonly("skipped", &method::TrainStats::skipped, "steps skipped for a non-finite loss")
+      .def("__repr__", [](const method::TrainStats& s) {
+        return "TrainStats(step=" + std::to_string(s.step) + ", loss=" + std::to_string(s.loss) +
+               ", val_psnr=" + std::to_string(s.val_psnr) + ")";
+      });
+
+  py::class_<method::Ours>(m, "Model", "A trained relightable model (\"Ours\"): renders any camera under any point light.")
+      .def_static(
+          "load",
+          [](const std::string& path, const py::object& device) { return method::load_model(pick(device), path); },
+          py::arg("path"), py::arg("device") = py::none(), "Loads the model of a checkpoint (checkpoint.relit).")
+      .def("render", &render, py::arg("camera"), py::arg("light"), py::arg("visibility") = "", py::arg("seed") = 0,
+           "Renders camera's image under the point light: float32 (height, width, 3), linear RGB. visibility:\n"
+           "\"network\" or \"march\" (default: the model's setting).")
+      .def_property_readonly("n_params", &method::Ours::n_params)
+      .def_property_readonly("n_visibility_params", &method::Ours::n_vis_params)
+      .def_property_readonly("config", [](const method::Ours& o) { return from_json(o.hyperparams()); });
+
+  py::class_<RunIterator>(m, "_RunIterator")
+      .def("__iter__", [](RunIterator& it) -> RunIterator& { return it; })
+      .def("__next__", &RunIterator::next);
+
+  py::class_<method::Trainer>(m, "Trainer", "Trains the model on a dataset folder (relit train in Python).")
+      .def(py::init([](const std::string& dataset, const py::object& config, const py::object& out,
+                       const py::object& device) {
+             auto t = std::make_unique<method::Trainer>(pick(device), dataset, config_from(config));
+             if (!out.is_none()) t->set_output(out.cast<std::string>());
+             return t;
+           }),
+           py::arg("dataset"), py::arg("config") = "fast", py::arg("out") = py::none(), py::arg("device") = py::none(),
+           "config: a preset name, a .json path or a dict. out: a run folder for config.json, log.jsonl and\n"
+           "checkpoints (optional).")
+      .def(
+          "run",
+          [](method::Trainer& t, std::uint64_t n, std::uint64_t every) {
+            return RunIterator{&t, t.steps() + n, every ? every : t.settings().log_every};
+          },
+          py::arg("n"), py::arg("every") = 0, py::keep_alive<0, 1>(),
+          "Trains n more steps, yielding TrainStats every `every` steps (default: training.log_every).")
+      .def("step", &method::Trainer::step, "One training step (asynchronous).")
+      .def("stats", &method::Trainer::stats)
+      .def("validate", &method::Trainer::validate, py::call_guard<py::gil_scoped_release>(),
+           "Mean PSNR (dB) of the validation views.")
+      .def("profile", &method::Trainer::profile, py::arg("n") = 10, py::call_guard<py::gil_scoped_release>(),
+           "Mean milliseconds per stage of a step over n steps: [(stage, ms), ...].")
+      .def("save_checkpoint", &method::Trainer::save_checkpoint, py::arg("path"))
+      .def("load_checkpoint", &method::Trainer::load_checkpoint, py::arg("path"))
+      .def_property_readonly("steps", &method::Trainer::steps)
+      .def_property_readonly("config", [](const method::Trainer& t) { return from_json(t.config()); })
+      .def_property_readonly(
+          "model", [](method::Trainer& t) -> method::Ours& { return t.model(); }, py::return_value_policy::reference_internal);
+}
+
+}  // namespace relit::python
