@@ -24,6 +24,8 @@ int run(const std::vector<std::string>& args) {
   add_generate_command(app);
   add_train_command(app);
   add_render_command(app);
+  add_eval_command(app);
+  add_demo_command(app);
 
   std::vector<std::string> reversed(args.rbegin(), args.rend() - (args.empty() ? 0 : 1));
   try {

@@ -4,9 +4,12 @@
 
 #include <relit/cl/device.hpp>
 #include <relit/dataset.hpp>
+#include <relit/scene/scene.hpp>
 #include <relit/error.hpp>
+#include <relit/io/checkpoint.hpp>
 #include <relit/io/file.hpp>
 #include <relit/io/image.hpp>
+#include <relit/method/evaluate.hpp>
 #include <relit/method/trainer.hpp>
 
 #include <cmath>
@@ -142,7 +145,109 @@ int run_render(const RenderOptions& o) {
   return 0;
 }
 
+struct EvalOptions {
+  std::string run, dataset, out, device, visibility;
+  std::vector<std::string> splits;
+  std::size_t max_views = 0;
+  bool no_images = false;
+};
+
+std::vector<std::string> default_splits(const std::string& dataset) {
+  std::vector<std::string> out{"test"};
+  for (const auto& [name, frames] : read_dataset(dataset).splits)
+    if (name.rfind("test_", 0) == 0 && !frames.empty()) out.push_back(name);
+  return out;
+}
+
+int run_eval(const EvalOptions& o) {
+  const Device device = Device::select(o.device);
+  const std::string checkpoint = (fs::path(o.run) / "checkpoint.relit").string();
+  const auto model = method::load_model(device, checkpoint);
+  std::string dataset = o.dataset;
+  const Json header = io::load_checkpoint(checkpoint).header;
+  if (dataset.empty()) dataset = header.at("config").value("dataset", std::string());
+  if (dataset.empty()) throw InvalidArgument("the run does not record its dataset; pass --dataset");
+  method::EvalOptions eo;
+  eo.splits = o.splits.empty() ? default_splits(dataset) : o.splits;
+  eo.max_views = o.max_views;
+  eo.write_images = !o.no_images;
+  eo.visibility = o.visibility;
+  const std::string out = o.out.empty() ? (fs::path(o.run) / "eval").string() : o.out;
+  const Json meta{{"run", o.run}, {"dataset", dataset}, {"step", header.value("step", Json())},
+                  {"device", device.info().name}, {"visibility", o.visibility.empty() ? model->settings().inference_visibility : o.visibility}};
+  ProgressBar bar("eval");
+  const auto views = method::evaluate(*model, dataset, out, eo, meta, [&](const Progress& p) { return bar(p); });
+  bar.finish();
+  std::cout << method::summary_lines(views) << "report written to " << out << " (metrics.json, metrics.md, contact sheets)\n";
+  return 0;
+}
+
+struct DemoOptions {
+  std::string out = "demo", device;
+  long long steps = -1;
+};
+
+int run_demo(const DemoOptions& o) {
+  const Device device = Device::select(o.device);
+  const std::string dataset = (fs::path(o.out) / "data" / "cloud").string();
+  const std::string run = (fs::path(o.out) / "run").string();
+  std::cerr << "relit demo: the default cloud, 'point' lighting, the fast preset, on " << device.info().name << "\n";
+  if (!fs::exists(fs::path(dataset) / "transforms_train.json")) {
+    std::cerr << "[1/3] generating the dataset (path tracing) → " << dataset << "\n";
+    DatasetSettings s;
+    s.generalization = true;
+    ProgressBar bar("generate");
+    generate_dataset(device, Scene::builtin_or_file("cloud", s.seed, 64), dataset, s, [&](const Progress& p) { return bar(p); });
+    bar.finish();
+  } else {
+    std::cerr << "[1/3] dataset " << dataset << " exists, reusing it\n";
+  }
+  TrainOptions t;
+  t.dataset = dataset;
+  t.out = run;
+  t.device = o.device;
+  t.steps = o.steps;
+  t.resume = fs::exists(fs::path(run) / "checkpoint.relit");
+  std::cerr << "[2/3] training → " << run << (t.resume ? " (resuming)" : "") << "\n";
+  run_train(t);
+  std::cerr << "[3/3] relighting the test views → " << run << "/eval\n";
+  EvalOptions e;
+  e.run = run;
+  e.device = o.device;
+  return run_eval(e);
+}
+
 }  // namespace
+
+void add_eval_command(CLI::App& app) {
+  auto o = std::make_shared<EvalOptions>();
+  auto* cmd = app.add_subcommand("eval", "relight a run's test views and report PSNR/SSIM (JSON, Markdown, contact sheets)");
+  cmd->add_option("run", o->run, "run folder written by relit train")->required();
+  cmd->add_option("--dataset", o->dataset, "dataset folder (default: the run's)");
+  cmd->add_option("--split", o->splits, "splits to evaluate (default: test and every test_* set)");
+  cmd->add_option("--max-views", o->max_views, "at most this many views per split (0: all)")->capture_default_str();
+  cmd->add_option("--out,-o", o->out, "report folder (default: RUN/eval)");
+  cmd->add_flag("--no-images", o->no_images, "write only the metrics and contact sheets, not every prediction");
+  cmd->add_option("--visibility", o->visibility, "network or march (default: the model's setting)")
+      ->check(CLI::IsMember({"network", "march"}));
+  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
+  cmd->final_callback([o] {
+    if (const int code = run_eval(*o)) throw CLI::RuntimeError(code);
+  });
+}
+
+void add_demo_command(CLI::App& app) {
+  auto o = std::make_shared<DemoOptions>();
+  auto* cmd = app.add_subcommand("demo", "the main job: generate the default cloud, train the fast preset, relight the "
+                                         "test views, print PSNR/SSIM and write images");
+  cmd->add_option("--out,-o", o->out, "demo folder (data/cloud, run/, run/eval/); reruns reuse what is there")
+      ->capture_default_str();
+  cmd->add_option("--steps", o->steps, "training steps (default: the fast preset's)");
+  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
+  cmd->final_callback([o] {
+    if (const int code = run_demo(*o)) throw CLI::RuntimeError(code);
+  });
+}
 
 void add_train_command(CLI::App& app) {
   auto o = std::make_shared<TrainOptions>();

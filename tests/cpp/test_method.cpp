@@ -4,6 +4,8 @@
 
 #include <relit/dataset.hpp>
 #include <relit/io/checkpoint.hpp>
+#include <relit/io/file.hpp>
+#include <relit/method/evaluate.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/nn/registry.hpp>
 #include <relit/render/rays.hpp>
@@ -299,6 +301,70 @@ TEST_F(MethodTrainer, BadDatasetsAreClearErrors) {
   bad = config();
   bad["method"] = "nerf";
   EXPECT_THROW(method::Trainer(dev, dataset(), bad), ConfigError);
+}
+
+}  // namespace
+}  // namespace relit
+
+namespace relit {
+namespace {
+
+method::ViewResult view(const std::string& split, const std::string& name, double psnr, double ssim, float pred, float ref) {
+  method::ViewResult v;
+  v.split = split;
+  v.name = name;
+  v.width = 4;
+  v.height = 3;
+  v.prediction.assign(36, pred);
+  v.reference.assign(36, ref);
+  v.metrics.psnr = psnr;
+  v.metrics.ssim = ssim;
+  v.metrics.mse = 1.0 / std::pow(10.0, psnr / 10.0);
+  return v;
+}
+
+TEST(Evaluation, SummariesAreMeansPerSplitAndOverall) {
+  const std::vector<method::ViewResult> views = {view("test", "a", 30, 0.9, 0.5f, 0.5f), view("test", "b", 20, 0.7, 0.5f, 0.5f),
+                                                 view("test_intensity_800", "c", 25, 0.8, 0.5f, 0.5f)};
+  const auto s = method::summarize(views);
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_EQ(s[0].split, "test");
+  EXPECT_EQ(s[0].n_views, 2u);
+  EXPECT_DOUBLE_EQ(s[0].psnr, 25.0);
+  EXPECT_DOUBLE_EQ(s[0].ssim, 0.8);
+  EXPECT_EQ(s[1].split, "test_intensity_800");
+  EXPECT_EQ(s[2].split, "all");
+  EXPECT_DOUBLE_EQ(s[2].psnr, 25.0);
+  const std::string lines = method::summary_lines(views);
+  EXPECT_NE(lines.find("test: PSNR 25.00 dB  SSIM 0.8000 (2 views)"), std::string::npos) << lines;
+  EXPECT_NE(lines.find("\nPSNR 25.0000\nSSIM 0.8000\n"), std::string::npos) << lines;
+}
+
+TEST(Evaluation, ContactSheetPanelsAndReportFiles) {
+  // Row 0: a perfect prediction (black error panel); row 1: off by 0.5 in linear (bright error panel).
+  const std::vector<method::ViewResult> views = {view("test", "a", 99, 1, 0.25f, 0.25f), view("test", "b", 5, 0.1, 1.0f, 0.0f)};
+  const Image sheet = method::contact_sheet({&views[0], &views[1]});
+  const int gutter = 4, w = 4, h = 3;
+  EXPECT_EQ(sheet.width, 3 * w + 4 * gutter);
+  EXPECT_EQ(sheet.height, 2 * (h + gutter) + gutter);
+  EXPECT_FLOAT_EQ(sheet.at(gutter, gutter, 0), 0.25f);             // prediction panel
+  EXPECT_FLOAT_EQ(sheet.at(2 * gutter + w, gutter, 1), 0.25f);     // ground-truth panel
+  EXPECT_LT(sheet.at(3 * gutter + 2 * w, gutter, 0), 1e-3f);        // no error: black
+  const int y1 = 2 * gutter + h;
+  EXPECT_GT(sheet.at(3 * gutter + 2 * w, y1, 0), 0.5f);            // full error: bright
+  EXPECT_THROW(method::contact_sheet({}), InvalidArgument);
+
+  test::TempDir dir("eval");
+  method::write_report(dir.path().string(), views, {{"run", "r"}});
+  const Json j = Json::parse(io::read_file((dir.path() / "metrics.json").string()));
+  EXPECT_EQ(j["views"].size(), 2u);
+  EXPECT_DOUBLE_EQ(j["splits"]["test"]["psnr"].get<double>(), 52.0);
+  EXPECT_EQ(j["meta"]["run"], "r");
+  const std::string md = io::read_file((dir.path() / "metrics.md").string());
+  EXPECT_NE(md.find("| test | 2 | 52.00 | 0.5500 |"), std::string::npos) << md;
+  const Image back = read_image((dir.path() / "contact_sheet_test.png").string());
+  EXPECT_EQ(back.width, sheet.width);
+  EXPECT_EQ(back.height, sheet.height);
 }
 
 }  // namespace

@@ -83,6 +83,18 @@ def test_cli_train_resume_and_render(dataset, tmp_path):
     r = run_python(["-m", "relit", "render", run, "--view", dataset + ":test:0", "--out", png])
     assert r.returncode == 0, r.stderr
     assert os.path.getsize(png) > 0
+    report = str(tmp_path / "eval")
+    r = run_python(["-m", "relit", "eval", run, "--out", report])
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    psnr = [float(x.split()[1]) for x in lines if x.startswith("PSNR ")]
+    ssim = [float(x.split()[1]) for x in lines if x.startswith("SSIM ")]
+    assert len(psnr) == 1 and len(ssim) == 1 and math.isfinite(psnr[0]) and -1 <= ssim[0] <= 1
+    metrics = json.load(open(os.path.join(report, "metrics.json")))
+    assert metrics["splits"]["test"]["n_views"] == 1 and metrics["meta"]["step"] == 6
+    assert abs(metrics["mean"]["psnr"] - psnr[0]) < 1e-3
+    assert os.path.exists(os.path.join(report, "contact_sheet_test.png"))
+    assert os.path.exists(os.path.join(report, "metrics.md"))
     r = run_python(["-m", "relit", "render", run, "--eye", "0", "-4", "1", "--resolution", "16", "--light", "1", "-3",
                     "2", "--intensity", "300", "200", "100", "--out", str(tmp_path / "x.exr")])
     assert r.returncode == 0, r.stderr

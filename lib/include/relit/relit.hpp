@@ -13,6 +13,7 @@
 #include <relit/io/image.hpp>
 #include <relit/log.hpp>
 #include <relit/method/ours.hpp>
+#include <relit/method/evaluate.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/metrics.hpp>
 #include <relit/nn/batch.hpp>
