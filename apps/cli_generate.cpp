@@ -57,6 +57,8 @@ void add_generate_command(CLI::App& app) {
   cmd->add_option("--val", s.val, "validation views")->capture_default_str();
   cmd->add_option("--test", s.test, "test views")->capture_default_str();
   cmd->add_option("--spp", s.spp, "path-traced samples per pixel")->capture_default_str();
+  cmd->add_option("--test-spp", s.test_spp, "samples per pixel of the test splits (0: --spp); the references that "
+                                            "evaluation compares with")->capture_default_str();
   cmd->add_option("--max-bounces", s.max_bounces, "scattering events per path (0 = unlimited)")->capture_default_str();
   cmd->add_option("--intensity", o->intensity, "point light intensity in W/sr: one value, or two for a range (default 600)")
       ->expected(1, 2);

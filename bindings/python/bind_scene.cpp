@@ -143,10 +143,11 @@ void bind_scene(py::module_& m) {
   m.def("generate_dataset",
         [](const Scene& scene, const std::string& out, const std::string& lighting, std::uint32_t seed, int resolution,
            std::uint32_t train, std::uint32_t val, std::uint32_t test, std::uint32_t spp, const py::object& intensity,
-           bool generalization, bool overwrite, bool previews, const py::object& device, const py::object& progress) {
+           bool generalization, bool overwrite, bool previews, const py::object& device, const py::object& progress,
+           std::uint32_t test_spp) {
           DatasetSettings s;
           s.lighting = lighting, s.seed = seed, s.resolution = resolution, s.train = train, s.val = val, s.test = test;
-          s.spp = spp, s.generalization = generalization, s.overwrite = overwrite, s.previews = previews;
+          s.spp = spp, s.test_spp = test_spp, s.generalization = generalization, s.overwrite = overwrite, s.previews = previews;
           if (py::isinstance<py::float_>(intensity) || py::isinstance<py::int_>(intensity)) {
             s.intensity_min = s.intensity_max = intensity.cast<float>();
           } else {
@@ -162,9 +163,10 @@ void bind_scene(py::module_& m) {
         py::arg("scene"), py::arg("out"), py::arg("lighting") = "point", py::arg("seed") = 0, py::arg("resolution") = 128,
         py::arg("train") = 100, py::arg("val") = 20, py::arg("test") = 50, py::arg("spp") = 64, py::arg("intensity") = 600.0f,
         py::arg("generalization") = false, py::arg("overwrite") = false, py::arg("previews") = true,
-        py::arg("device") = py::none(), py::arg("progress") = py::none(),
+        py::arg("device") = py::none(), py::arg("progress") = py::none(), py::arg("test_spp") = 0,
         "Renders a dataset folder (docs/dataset-format.md). lighting: 'point' or 'env+point'; intensity: W/sr, or a\n"
-        "(min, max) range. The folder appears only when complete.");
+        "(min, max) range; test_spp: samples per pixel of the test splits (0: spp). The folder appears only when\n"
+        "complete.");
 }
 
 }  // namespace relit::python

@@ -2,6 +2,7 @@
 #include "test_support.hpp"
 
 #include <relit/dataset.hpp>
+#include <relit/io/file.hpp>
 
 #include <cmath>
 #include <fstream>
@@ -68,11 +69,14 @@ TEST(Dataset, RoundTripGivesIdenticalCamerasLightsAndPixels) {
   test::TempDir dir("dataset");
   const Device dev = test::test_device();
   const Scene scene = tiny_scene();
-  const DatasetSettings s = tiny();
+  DatasetSettings s = tiny();
+  s.test_spp = 5;  // cleaner test references than the training images
   const std::string out = (dir.path() / "ds").string();
   generate_dataset(dev, scene, out, s);
   const DatasetDescription plan = plan_dataset(s), back = read_dataset(out);
   EXPECT_EQ(back.lighting, "point");
+  EXPECT_EQ(Json::parse(io::read_file(out + "/transforms_test.json"))["spp"], 5);
+  EXPECT_EQ(Json::parse(io::read_file(out + "/transforms_train.json"))["spp"], s.spp);
   EXPECT_TRUE(back.environment.is_null());
   ASSERT_EQ(back.splits.size(), 3u);
   const PathTracer pt(dev, scene);
@@ -92,7 +96,7 @@ TEST(Dataset, RoundTripGivesIdenticalCamerasLightsAndPixels) {
       EXPECT_TRUE(fs::exists(fs::path(out) / (name + "/r_00" + std::to_string(i) + ".png")));
       if (i == 0) {  // stored pixels are exactly the render of that view (float EXR: bit exact)
         RenderSettings rs;
-        rs.spp = s.spp;
+        rs.spp = name == "test" ? s.test_spp : s.spp;
         rs.seed = dataset_view_seed(s.seed, name, i);
         EXPECT_EQ(img.pixels, pt.render(a.camera, {a.light}, rs).image.pixels) << name;
       }

@@ -36,6 +36,9 @@ struct ParamDoc {
   std::string description;
 };
 
+/// The keys of a structured config, object by object: (JSON pointer of the object, its keys).
+using Docs = std::vector<std::pair<std::string, std::vector<ParamDoc>>>;
+
 class Reader {
  public:
   /// `pointer` is where `json` sits in the whole document ("" for the root); `component` names the thing

@@ -34,6 +34,7 @@ struct DatasetSettings {
   int resolution = 128;            ///< square images
   std::uint32_t train = 100, val = 20, test = 50;
   std::uint32_t spp = 64;
+  std::uint32_t test_spp = 0;      ///< samples per pixel of the test and test_* splits (0: spp); cleaner references
   std::uint32_t max_bounces = 0;   ///< 0 = unlimited
   float camera_distance = 4.0f;    ///< the scene box [-1, 1]^3 nearly fills the view at the default field of view
   float camera_angle_x = 0.8f;

@@ -1,5 +1,6 @@
 // Generates docs/config.md from the component registries.
 #include <relit/config_reference.hpp>
+#include <relit/method/trainer.hpp>
 #include <relit/nn/registry.hpp>
 
 #include <sstream>
@@ -74,6 +75,20 @@ std::string config_reference_markdown() {
            std::uint32_t(16));
   describe(out, nn::losses(), "Losses", "Training losses on linear radiance.");
   describe(out, nn::optimizers(), "Optimizers", "Optimisers update a model's flat parameter buffer.");
+  out << "## Run config\n\n"
+         "`relit train --config FILE.json` and `relit.Trainer(config=...)` take a run config: `{\"method\", "
+         "\"model\", \"training\"}`. The presets `fast` and `paper` (configs/*.json) are complete examples; "
+         "a key left out takes the default below. Keys of type *component* take an encoding, network, loss or "
+         "optimizer object from the sections above (the model sets the networks' output heads itself). See "
+         "docs/method.md.\n\n";
+  for (const auto& [pointer, docs] : method::run_config_docs()) {
+    out << "### `" << (pointer.empty() ? "/" : pointer) << "`\n\n"
+        << "| key | type | default | valid values | description |\n|---|---|---|---|---|\n";
+    for (const auto& d : docs)
+      out << "| `" << d.key << "` | " << d.type << " | " << cell(d.type == "object" ? "(object below)" : default_text(d.default_value))
+          << " | " << cell(d.valid) << " | " << cell(d.description) << " |\n";
+    out << '\n';
+  }
   return out.str();
 }
 

@@ -70,6 +70,7 @@ void DatasetSettings::validate() const {
   if (train + val + test == 0) throw InvalidArgument("the dataset needs at least one view (train, val or test)");
   if (train > 100000 || val > 100000 || test > 100000) throw InvalidArgument("more than 100000 views in a split");
   if (spp < 1 || spp > 65536) throw InvalidArgument("spp must lie in [1, 65536]");
+  if (test_spp > 65536) throw InvalidArgument("test_spp must lie in [0, 65536] (0: the same as spp)");
   if (!(camera_distance > 1.8f) || !std::isfinite(camera_distance))
     throw InvalidArgument("camera_distance must exceed 1.8 (cameras stay outside the scene box [-1, 1]^3)");
   if (!(camera_angle_x > 0.05f && camera_angle_x < 3.0f)) throw InvalidArgument("camera_angle_x must lie in (0.05, 3)");
@@ -177,10 +178,13 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
   scene_json.erase("cameras");
 
   const DatasetDescription plan = plan_dataset(s);
+  auto split_spp = [&](const std::string& name) {
+    return (name == "test" || name.rfind("test_", 0) == 0) && s.test_spp ? s.test_spp : s.spp;
+  };
   std::uint64_t total = 0;
-  for (const auto& [name, frames] : plan.splits) total += frames.size();
-  const std::uint64_t per_view = std::uint64_t(s.resolution) * s.resolution * s.spp;
-  ProgressTracker tracker(progress, total * per_view, "samples");
+  for (const auto& [name, frames] : plan.splits)
+    total += frames.size() * std::uint64_t(s.resolution) * s.resolution * split_spp(name);
+  ProgressTracker tracker(progress, total, "samples");
 
   const fs::path tmp = parent / ("." + out.filename().string() + ".partial-" + std::to_string(::getpid()));
   fs::remove_all(tmp);
@@ -197,18 +201,20 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
     RenderSettings rs;
     rs.spp = s.spp;
     rs.max_bounces = s.max_bounces;
-    std::uint64_t views_done = 0;
+    std::uint64_t samples_done = 0;
     for (const auto& [name, frames] : plan.splits) {
       if (frames.empty()) continue;
+      rs.spp = split_spp(name);
+      const std::uint64_t view_samples = std::uint64_t(s.resolution) * s.resolution * rs.spp;
       fs::create_directories(tmp / name);
       Json doc = {{"camera_angle_x", s.camera_angle_x}, {"w", s.resolution}, {"h", s.resolution},
-                  {"lighting", s.lighting}, {"environment", env_json}, {"scene", "scene.json"}, {"spp", s.spp},
+                  {"lighting", s.lighting}, {"environment", env_json}, {"scene", "scene.json"}, {"spp", rs.spp},
                   {"seed", s.seed}, {"relit_version", relit::version()}, {"frames", Json::array()}};
       for (std::size_t i = 0; i < frames.size(); ++i) {
         const DatasetFrame& f = frames[i];
         rs.seed = dataset_view_seed(s.seed, name, i);
         const std::string stem = f.file_path.substr(0, f.file_path.size() - 4);
-        const std::uint64_t base = views_done * per_view;
+        const std::uint64_t base = samples_done;
         ProgressCallback per_view;  // without a callback, launches run back to back with no waiting
         if (progress) per_view = [&](const Progress& p) {
           tracker.update(base + p.done, stem);
@@ -232,7 +238,7 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
                                  {"intensity", vec_json(f.light.intensity)}}}};
         if (s.previews) frame["preview_path"] = stem + ".png";
         doc["frames"].push_back(frame);
-        ++views_done;
+        samples_done += view_samples;
       }
       io::write_file_atomic((tmp / ("transforms_" + name + ".json")).string(), doc.dump(2) + "\n");
     }

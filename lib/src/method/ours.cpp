@@ -93,7 +93,21 @@ void StageTimer::mark(const std::string& stage) {
 }
 
 Ours::Ours(const Device& device, const Json& config, const std::string& pointer) : m_device(device) {
+  configure(config, pointer, nullptr);
+  allocate();
+}
+
+void Ours::describe(config::Docs& docs) {
+  Ours o;
+  o.configure(Json::object(), "/model", &docs);
+}
+
+void Ours::configure(const Json& config, const std::string& pointer, config::Docs* docs) {
   if (!config.is_object()) throw ConfigError(pointer, "the model config must be an object, got " + config.dump());
+  auto record = [docs](const config::Reader& reader) {
+    if (docs) docs->emplace_back(reader.pointer(), reader.docs());
+  };
+  const std::size_t first_doc = docs ? docs->size() : 0;
   config::Reader r(config, pointer, "model");
   auto& s = m_settings;
   {
@@ -109,6 +123,7 @@ Ours::Ours(const Device& device, const Json& config, const std::string& pointer)
                                                  "closed-form indirect light sum_lm g^l c_lm Y_lm(-w_o) instead of "
                                                  "the K-direction sum (no max(0, .) clamp)");
     rr.finish();
+    record(rr);
     r.set_resolved("renderer", rr.resolved());
   }
   s.n_features = r.uint("n_features", 11, 1, 256, "feature columns passed from the property net to the SH head");
@@ -127,6 +142,7 @@ Ours::Ours(const Device& device, const Json& config, const std::string& pointer)
     s.visibility_fraction = gr.number("visibility_fraction", 0.25f, 1e-3f, 1.0f,
                                       "share of each batch's rays whose samples train the visibility net");
     gr.finish();
+    record(gr);
     r.set_resolved("density_grid", gr.resolved());
   }
   s.inference_visibility = r.choice("inference_visibility", "network", {"network", "march"},
@@ -140,6 +156,7 @@ Ours::Ours(const Device& device, const Json& config, const std::string& pointer)
     const Json enc = sub.component("encoding", default_property(), "position encoding (3 dims)");
     Json net = sub.component("network", default_property(), "the trunk; its output heads are set by the model");
     sub.reader.finish();
+    record(sub.reader);
     const std::string ptr = r.pointer("property");
     net = with_heads(net, ptr + "/network",
                      Json::array({{{"n_dims", 1}, {"activation", "Softplus"}}, {{"n_dims", 3}, {"activation", "Sigmoid"}},
@@ -157,6 +174,7 @@ Ours::Ours(const Device& device, const Json& config, const std::string& pointer)
     const Json lenc = sub.component("light_encoding", default_indirect(), "encoding of the light position (3 dims)");
     Json net = sub.component("network", default_indirect(), "the head's MLP (output activation: none)");
     sub.reader.finish();
+    record(sub.reader);
     const std::string ptr = r.pointer("indirect");
     net = with_heads(net, ptr + "/network", Json::array({{{"n_dims", 3 * n_sh}, {"activation", "None"}}}));
     Json nested = Json::array({{{"type", "Identity"}, {"n_dims_to_encode", s.n_features}}});
@@ -181,6 +199,7 @@ Ours::Ours(const Device& device, const Json& config, const std::string& pointer)
     Json denc = sub.component("direction_encoding", default_visibility(), "direction encoding (3 dims)");
     Json net = sub.component("network", default_visibility(), "the MLP (output: one sigmoid)");
     sub.reader.finish();
+    record(sub.reader);
     const std::string ptr = r.pointer("visibility");
     net = with_heads(net, ptr + "/network", Json::array({{{"n_dims", 1}, {"activation", "Sigmoid"}}}));
     penc["n_dims_to_encode"] = 3;
@@ -197,6 +216,12 @@ Ours::Ours(const Device& device, const Json& config, const std::string& pointer)
   }
   r.finish();
   m_resolved = r.resolved();
+  if (docs) docs->insert(docs->begin() + std::ptrdiff_t(first_doc), {r.pointer(), r.docs()});
+}
+
+void Ours::allocate() {
+  const Device& device = m_device;
+  const auto& s = m_settings;
 
   m_renderer = std::make_unique<render::VolumeRenderer>(device, s.renderer);
   m_params = Buffer<float>(device, n_params());

@@ -147,13 +147,32 @@ void tiled_to_rows(const Device& device, const nn::BatchMatrix& m, Buffer<float>
   device.kernel("method.cl", "tiled_to_rows").args(m.batch(), m.cols(), m.data(), rows).launch(m.batch(), 64);
 }
 
+// The top-level keys of a run config (also read by the Trainer's constructor).
+Json read_run_keys(config::Reader& r) {
+  r.choice("method", "ours", {"ours"}, "the method");
+  return r.sub("model", Json::object(), "object", "the model (the /model objects below)");
+}
+
 }  // namespace
+
+config::Docs run_config_docs() {
+  config::Docs docs;
+  config::Reader r(Json::object(), "", "run");
+  read_run_keys(r);
+  r.sub("training", Json::object(), "object", "training settings (/training below)");
+  docs.emplace_back("", r.docs());
+  Ours::describe(docs);
+  config::Reader tr(Json::object(), "/training", "training");
+  Json loss, opt, vis_opt;
+  read_training(tr, loss, opt, vis_opt);
+  docs.emplace_back("/training", tr.docs());
+  return docs;
+}
 
 Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Json& config) : m_device(device) {
   if (!config.is_object()) throw ConfigError("", "the run config must be a JSON object");
   config::Reader r(config, "", "run");
-  r.choice("method", "ours", {"ours"}, "the method");
-  const Json model = r.sub("model", Json::object(), "object", "the model (see the model section)");
+  const Json model = read_run_keys(r);
   Json loss, opt, vis_opt;
   {
     config::Reader tr(r.sub("training", Json::object(), "object", "training settings"), r.pointer("training"), "training");

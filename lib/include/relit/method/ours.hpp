@@ -75,6 +75,8 @@ class Ours {
   /// Builds the networks from the "model" config object (at JSON pointer `pointer`); unknown keys and bad
   /// values are ConfigErrors naming the pointer.
   Ours(const Device& device, const Json& config, const std::string& pointer = "/model");
+  /// Every key of the model config, per JSON object (for docs/config.md).
+  static void describe(config::Docs& docs);
 
   const OursSettings& settings() const { return m_settings; }
   /// The resolved "model" config: building from it gives the same model.
@@ -125,6 +127,9 @@ class Ours {
   render::DensityGrid& density_grid() { return m_grid; }
 
  private:
+  Ours() = default;
+  void configure(const Json& config, const std::string& pointer, config::Docs* docs);
+  void allocate();
   Device m_device;
   OursSettings m_settings;
   Json m_resolved;

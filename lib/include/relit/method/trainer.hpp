@@ -35,6 +35,9 @@ Json preset(const std::string& name);
 /// `spec` is a preset name or the path of a JSON file; throws ConfigError/IOError naming the file on errors.
 Json load_run_config(const std::string& spec);
 
+/// Every key of a run config, object by object (the "Run config" part of docs/config.md).
+config::Docs run_config_docs();
+
 /// One split of a dataset on the host: cameras, lights and linear RGB images (n x h x w x 3).
 struct DatasetSplit {
   std::string split;
