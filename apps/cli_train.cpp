@@ -194,6 +194,7 @@ int run_demo(const DemoOptions& o) {
   std::cerr << "relit demo: the default cloud, 'point' lighting, the fast preset, on " << device.info().name << "\n";
   if (!fs::exists(fs::path(dataset) / "transforms_train.json")) {
     std::cerr << "[1/3] generating the dataset (path tracing) → " << dataset << "\n";
+    fs::create_directories(fs::path(dataset).parent_path());
     DatasetSettings s;
     s.test_spp = 256;  // clean references: at 64 spp the noise alone caps the PSNR near 31 dB
     s.generalization = true;
