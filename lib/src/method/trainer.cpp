@@ -275,7 +275,9 @@ double Trainer::validate() {
   if (m_val.size() == 0) return m_val_psnr;
   double sum = 0;
   for (std::size_t i = 0; i < m_val.size(); ++i) {
-    const Image img = render_image(*m_model, m_val.cameras[i], m_val.lights[i], {4096, 7, ""});
+    RenderSettings rs;
+    rs.seed = 7;
+    const Image img = render_image(*m_model, m_val.cameras[i], m_val.lights[i], rs);
     sum += metrics::compare(m_device, img.pixels, m_val.image(i), m_val.width, m_val.height, 3).psnr;
   }
   m_val_psnr = sum / double(m_val.size());

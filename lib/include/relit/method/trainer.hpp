@@ -142,7 +142,7 @@ class Trainer {
 };
 
 struct RenderSettings {
-  std::uint32_t tile_rays = 4096;  ///< rays per pass
+  std::uint32_t tile_rays = 1024;  ///< rays per pass (small tiles stay in cache)
   std::uint32_t seed = 0;          ///< draws the indirect directions
   /// "" uses the model's inference_visibility setting; "network" or "march" override it.
   std::string visibility;
