@@ -11,6 +11,7 @@
 #include <relit/io/image.hpp>
 #include <relit/method/evaluate.hpp>
 #include <relit/method/trainer.hpp>
+#include <relit/report.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -178,7 +179,7 @@ int run_eval(const EvalOptions& o) {
   ProgressBar bar("eval");
   const auto views = method::evaluate(*model, dataset, out, eo, meta, [&](const Progress& p) { return bar(p); });
   bar.finish();
-  std::cout << method::summary_lines(views) << "report written to " << out << " (metrics.json, metrics.md, contact sheets)\n";
+  std::cout << report::format_summary_lines(views) << "report written to " << out << " (metrics.json, metrics.md, contact sheets)\n";
   return 0;
 }
 

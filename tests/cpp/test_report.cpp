@@ -1,0 +1,453 @@
+// Evaluation reports: hand-computed means, the summary lines, contact-sheet layout and pixels, metrics.json
+// and metrics.md parsed back, clear errors for bad input, and files that survive a failed write.
+#include "test_support.hpp"
+
+#include <relit/io/file.hpp>
+#include <relit/report.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+
+namespace relit {
+namespace {
+
+namespace fs = std::filesystem;
+using report::ViewResult;
+
+// A w x h view of constant linear colours; metrics set by hand (psnr → mse = 10^(-psnr/10)).
+ViewResult view(const std::string& split, const std::string& name, double psnr, double ssim, float pred = 0.5f,
+                float ref = 0.5f, std::uint32_t w = 4, std::uint32_t h = 3) {
+  ViewResult v;
+  v.split = split;
+  v.name = name;
+  v.width = w;
+  v.height = h;
+  v.prediction.assign(std::size_t(w) * h * 3, pred);
+  v.reference.assign(std::size_t(w) * h * 3, ref);
+  v.metrics.psnr = psnr;
+  v.metrics.ssim = ssim;
+  v.metrics.mse = std::pow(10.0, -psnr / 10.0);
+  return v;
+}
+
+// The message of the InvalidArgument that `f` throws ("" when it throws none).
+template <class F>
+std::string invalid_argument_message(F&& f) {
+  try {
+    f();
+  } catch (const InvalidArgument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+// Relative luminance of an sRGB colour.
+double luminance(const std::array<float, 3>& c) {
+  return 0.2126 * srgb_to_linear(c[0]) + 0.7152 * srgb_to_linear(c[1]) + 0.0722 * srgb_to_linear(c[2]);
+}
+
+std::vector<const ViewResult*> pointers(const std::vector<ViewResult>& views) {
+  std::vector<const ViewResult*> out;
+  for (const auto& v : views) out.push_back(&v);
+  return out;
+}
+
+TEST(Report, SummariesAreMeansPerSplitInFirstSeenOrder) {
+  // Splits interleaved: the order is that of first appearance, not alphabetical.
+  const std::vector<ViewResult> views = {view("test_light", "c", 25, 0.8), view("test", "a", 30, 0.9),
+                                         view("test_light", "d", 35, 0.6), view("test", "b", 20, 0.7)};
+  const auto s = report::summarize(views);
+  ASSERT_EQ(s.size(), 2u);
+  EXPECT_EQ(s[0].split, "test_light");
+  EXPECT_EQ(s[0].n_views, 2u);
+  EXPECT_DOUBLE_EQ(s[0].psnr, 30.0);
+  EXPECT_DOUBLE_EQ(s[0].ssim, 0.7);
+  EXPECT_DOUBLE_EQ(s[0].mse, (std::pow(10.0, -2.5) + std::pow(10.0, -3.5)) / 2);
+  EXPECT_EQ(s[1].split, "test");
+  EXPECT_DOUBLE_EQ(s[1].psnr, 25.0);
+  EXPECT_DOUBLE_EQ(s[1].ssim, 0.8);
+  // The PSNR mean is the mean of PSNRs (27.5 dB), not the PSNR of the mean MSE (≈ 24.7 dB).
+  const auto all = report::overall(views);
+  EXPECT_EQ(all.split, "all");
+  EXPECT_EQ(all.n_views, 4u);
+  EXPECT_DOUBLE_EQ(all.psnr, 27.5);
+  EXPECT_DOUBLE_EQ(all.ssim, 0.75);
+  EXPECT_DOUBLE_EQ(all.mse, (std::pow(10.0, -2.5) + std::pow(10.0, -3.0) + std::pow(10.0, -3.5) + 0.01) / 4);
+  EXPECT_THROW(report::overall({}), InvalidArgument);
+  EXPECT_TRUE(report::summarize({}).empty());
+}
+
+TEST(Report, SummaryLinesEndWithTheParsableMeans) {
+  const std::vector<ViewResult> views = {view("test", "a", 30, 0.9), view("test", "b", 20.5, 0.7),
+                                         view("test_light", "c", 25, 0.81234)};
+  EXPECT_EQ(report::format_summary_lines(views),
+            "test: PSNR 25.25 dB  SSIM 0.8000 (2 views)\n"
+            "test_light: PSNR 25.00 dB  SSIM 0.8123 (1 view)\n"
+            "PSNR 25.1667\n"
+            "SSIM 0.8041\n");
+  EXPECT_THROW(report::format_summary_lines({}), InvalidArgument);
+}
+
+TEST(Report, RowSelectionSpreadsEvenlyFromFirstToLast) {
+  EXPECT_EQ(report::select_rows(5, 8), (std::vector<std::size_t>{0, 1, 2, 3, 4}));
+  EXPECT_EQ(report::select_rows(10, 4), (std::vector<std::size_t>{0, 3, 6, 9}));
+  EXPECT_EQ(report::select_rows(9, 8), (std::vector<std::size_t>{0, 1, 2, 3, 5, 6, 7, 8}));
+  EXPECT_EQ(report::select_rows(50, 2), (std::vector<std::size_t>{0, 49}));
+  EXPECT_EQ(report::select_rows(7, 1), (std::vector<std::size_t>{0}));
+  EXPECT_TRUE(report::select_rows(0, 8).empty());
+  EXPECT_THROW(report::select_rows(5, 0), InvalidArgument);
+  for (std::size_t n = 1; n <= 40; ++n)
+    for (std::size_t m = 1; m <= 10; ++m) {
+      const auto rows = report::select_rows(n, m);
+      ASSERT_EQ(rows.size(), std::min(n, m)) << n << " " << m;
+      EXPECT_EQ(rows.front(), 0u);
+      if (rows.size() > 1) {
+        EXPECT_EQ(rows.back(), n - 1);
+      }
+      for (std::size_t k = 1; k < rows.size(); ++k) {
+        EXPECT_GT(rows[k], rows[k - 1]) << n << " " << m;
+        // Even spacing: gaps differ by at most one view.
+        if (k > 1) {
+          EXPECT_LE(std::abs(long(rows[k] - rows[k - 1]) - long(rows[1] - rows[0])), 1) << n << " " << m;
+        }
+      }
+    }
+}
+
+TEST(Report, ErrorColourMapIsInfernoWithRisingLuminance) {
+  // The ends and the middle of matplotlib's 'inferno' (entries 0, 127/128 and 255 of its 256).
+  const auto c0 = report::error_colour(0.0f), c1 = report::error_colour(1.0f), mid = report::error_colour(0.5f);
+  EXPECT_FLOAT_EQ(c0[0], 0.001462f);
+  EXPECT_FLOAT_EQ(c0[1], 0.000466f);
+  EXPECT_FLOAT_EQ(c0[2], 0.013866f);
+  EXPECT_FLOAT_EQ(c1[0], 0.988362f);
+  EXPECT_FLOAT_EQ(c1[1], 0.998364f);
+  EXPECT_FLOAT_EQ(c1[2], 0.644924f);
+  EXPECT_NEAR(mid[0], 0.7328, 2e-3);  // between 0.729909 and 0.735683
+  EXPECT_NEAR(mid[1], 0.2144, 2e-3);  // between 0.212759 and 0.215906
+  EXPECT_NEAR(mid[2], 0.3320, 2e-3);  // between 0.333861 and 0.330245
+  // Out-of-range values clamp.
+  EXPECT_EQ(report::error_colour(-3.0f), c0);
+  EXPECT_EQ(report::error_colour(7.0f), c1);
+  // A perceptually ordered map: luminance rises all the way (also catches a mistyped control point).
+  double last = -1;
+  for (int i = 0; i <= 1000; ++i) {
+    const double l = luminance(report::error_colour(float(i) / 1000.0f));
+    EXPECT_GT(l, last) << "at t = " << i / 1000.0;
+    last = l;
+  }
+}
+
+TEST(Report, ContactSheetPanelsInOrderWithGutters) {
+  // Row 0: prediction 0.2, reference 0.6 (distinct, to see the order); row 1: identical images.
+  std::vector<ViewResult> views = {view("test", "a", 10, 0.5, 0.2f, 0.6f), view("test", "b", 99, 1, 0.3f, 0.3f)};
+  const int w = 4, h = 3, g = 4;
+  const Image sheet = report::contact_sheet(pointers(views));
+  ASSERT_EQ(sheet.channels, 3);
+  EXPECT_EQ(sheet.width, 3 * w + 4 * g);
+  EXPECT_EQ(sheet.height, 2 * (h + g) + g);
+  for (int c = 0; c < 3; ++c) {
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        EXPECT_FLOAT_EQ(sheet.at(g + x, g + y, c), 0.2f);          // prediction | ...
+        EXPECT_FLOAT_EQ(sheet.at(2 * g + w + x, g + y, c), 0.6f);  // ... | reference | ...
+        // ... | error: no error → the colour map's zero colour, stored linear.
+        const int y1 = 2 * g + h + y;
+        EXPECT_FLOAT_EQ(sheet.at(3 * g + 2 * w + x, y1, c), srgb_to_linear(report::error_colour(0)[c]));
+      }
+    EXPECT_FLOAT_EQ(sheet.at(0, 0, c), 0.01f);                          // corner gutter
+    EXPECT_FLOAT_EQ(sheet.at(g + w, g, c), 0.01f);                      // between prediction and reference
+    EXPECT_FLOAT_EQ(sheet.at(g, g + h, c), 0.01f);                      // between the rows
+    EXPECT_FLOAT_EQ(sheet.at(sheet.width - 1, sheet.height - 1, c), 0.01f);
+  }
+  // Row 0's error: |sRGB(0.2) - sRGB(0.6)| per channel, / 0.25, through the map.
+  const float e = std::fabs(linear_to_srgb(0.2f) - linear_to_srgb(0.6f)) / 0.25f;
+  const auto expected = report::error_colour(e);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(sheet.at(3 * g + 2 * w, g, c), srgb_to_linear(expected[c]), 1e-6);
+}
+
+TEST(Report, ContactSheetErrorScaleClampingAndMixedSizes) {
+  // Reference at sRGB 0.125, prediction black: error 0.125 = half of the default scale → map(0.5); with
+  // error_scale 0.125 → the top of the map. Prediction values beyond [0, 1] are clamped for display.
+  ViewResult v = view("test", "a", 20, 0.5, -0.5f, srgb_to_linear(0.125f));
+  ViewResult small = view("test", "small", 20, 0.5, 1.7f, 1.0f, 2, 2);
+  const std::vector<const ViewResult*> both = {&v, &small};
+  report::ContactSheetOptions o;
+  o.gutter = 1;
+  const Image a = report::contact_sheet(both, o);
+  EXPECT_EQ(a.width, 3 * 4 + 4);
+  EXPECT_EQ(a.height, 2 * (3 + 1) + 1);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_FLOAT_EQ(a.at(1, 1, c), 0.0f);  // -0.5 shown as 0
+    EXPECT_NEAR(a.at(1 + 2 * (4 + 1), 1, c), srgb_to_linear(report::error_colour(0.5f)[c]), 1e-5);
+    // The 2x2 view in a 4x3 cell: its panel top-left, the rest of the cell gutter.
+    EXPECT_FLOAT_EQ(a.at(1, 5, c), 1.0f);  // 1.7 shown as 1
+    EXPECT_FLOAT_EQ(a.at(1 + 2, 5, c), 0.01f);
+    EXPECT_FLOAT_EQ(a.at(1, 5 + 2, c), 0.01f);
+  }
+  o.error_scale = 0.125f;
+  const Image b = report::contact_sheet(both, o);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(b.at(1 + 2 * (4 + 1), 1, c), srgb_to_linear(report::error_colour(1.0f)[c]), 1e-5);
+}
+
+TEST(Report, ContactSheetCapsTheRows) {
+  // Ten views of the values 0.0, 0.1, ..., 0.9: four rows show views 0, 3, 6 and 9.
+  std::vector<ViewResult> views;
+  for (int i = 0; i < 10; ++i) views.push_back(view("test", "v" + std::to_string(i), 20, 0.5, 0.1f * i, 0.5f));
+  report::ContactSheetOptions o;
+  o.max_rows = 4;
+  const Image sheet = report::contact_sheet(pointers(views), o);
+  const int h = 3, g = 4;
+  ASSERT_EQ(sheet.height, 4 * (h + g) + g);
+  const int shown[] = {0, 3, 6, 9};
+  for (int r = 0; r < 4; ++r) EXPECT_FLOAT_EQ(sheet.at(g, g + r * (h + g), 0), 0.1f * shown[r]) << "row " << r;
+  // The default cap is 8.
+  EXPECT_EQ(report::contact_sheet(pointers(views)).height, 8 * (h + g) + g);
+}
+
+TEST(Report, ContactSheetRejectsBadInput) {
+  const ViewResult ok = view("test", "a", 20, 0.5);
+  EXPECT_TRUE(contains(invalid_argument_message([] { report::contact_sheet({}); }), "no views"));
+  EXPECT_TRUE(contains(invalid_argument_message([&] { report::contact_sheet({&ok, nullptr}); }), "view 1 is null"));
+  report::ContactSheetOptions o;
+  o.error_scale = 0;
+  EXPECT_TRUE(contains(invalid_argument_message([&] { report::contact_sheet({&ok}, o); }), "error_scale"));
+  o = {};
+  o.max_rows = 0;
+  EXPECT_TRUE(contains(invalid_argument_message([&] { report::contact_sheet({&ok}, o); }), "max_rows"));
+  ViewResult bad = ok;
+  bad.name = "broken";
+  bad.reference.pop_back();
+  const std::string m = invalid_argument_message([&] { report::contact_sheet({&ok, &bad}); });
+  EXPECT_TRUE(contains(m, "test/broken") && contains(m, "reference") && contains(m, "35 values")) << m;
+}
+
+TEST(Report, BadViewsAreClearErrorsNamingTheView) {
+  const auto message = [](std::vector<ViewResult> views) {
+    return invalid_argument_message([&] { report::validate(views); });
+  };
+  EXPECT_TRUE(contains(message({}), "no views"));
+
+  std::vector<ViewResult> views = {view("test", "a", 20, 0.5), view("test", "b", 20, 0.5)};
+  EXPECT_EQ(message(views), "");
+
+  auto v = views;
+  v[1].prediction[(2 * 4 + 1) * 3 + 2] = std::numeric_limits<float>::quiet_NaN();  // pixel (1, 2), blue
+  std::string m = message(v);
+  EXPECT_TRUE(contains(m, "view 1 ('test/b')") && contains(m, "prediction") && contains(m, "NaN") &&
+              contains(m, "(x 1, y 2) channel 2"))
+      << m;
+  v = views;
+  v[0].reference[0] = std::numeric_limits<float>::infinity();
+  m = message(v);
+  EXPECT_TRUE(contains(m, "'test/a'") && contains(m, "reference") && contains(m, "infinite")) << m;
+
+  v = views;
+  v[1].prediction.resize(10);
+  m = message(v);
+  EXPECT_TRUE(contains(m, "'test/b'") && contains(m, "10 values") && contains(m, "4 x 3 x 3 = 36")) << m;
+
+  v = views;
+  v[0].width = 0;
+  EXPECT_TRUE(contains(message(v), "empty size"));
+
+  v = views;
+  v[1].name = "a";
+  m = message(v);
+  EXPECT_TRUE(contains(m, "view 1") && contains(m, "same name")) << m;
+  v[1].split = "test_light";  // the same name in another split is fine
+  EXPECT_EQ(message(v), "");
+
+  for (const std::string bad : {"", "..", "x/y", "x\\y", "a\nb"}) {
+    v = views;
+    v[0].name = bad;
+    EXPECT_TRUE(contains(message(v), "name must be a plain file name")) << bad;
+    v = views;
+    v[0].split = bad;
+    EXPECT_TRUE(contains(message(v), "split must be a plain file name")) << bad;
+  }
+
+  v = views;
+  v[1].metrics.ssim = std::numeric_limits<double>::quiet_NaN();
+  m = message(v);
+  EXPECT_TRUE(contains(m, "'test/b'") && contains(m, "invalid metrics")) << m;
+  v = views;
+  v[0].metrics.psnr = std::numeric_limits<double>::infinity();  // a perfect view: fine
+  v[0].metrics.mse = 0;
+  EXPECT_EQ(message(v), "");
+}
+
+TEST(Report, MetricsJsonAndMarkdownParseBack) {
+  test::TempDir dir("report");
+  std::vector<ViewResult> views = {view("test", "a", 30, 0.9), view("test", "b", 20, 0.7),
+                                   view("test_light", "c|d", 25, 0.81234)};
+  report::ReportOptions o;
+  o.meta = {{"method", "ours"}, {"steps", 3000}, {"config", {{"lr", 0.01}}}};
+  o.sheet.max_rows = 1;
+  const fs::path out = dir.path() / "eval" / "nested";  // created
+  report::write_report(out.string(), views, o);
+
+  const std::string text = io::read_file((out / "metrics.json").string());
+  const Json j = Json::parse(text);
+  EXPECT_EQ(j["format"], "relit-eval-report");
+  EXPECT_EQ(j["meta"], o.meta);
+  EXPECT_EQ(j["mean"]["n_views"], 3);
+  EXPECT_DOUBLE_EQ(j["mean"]["psnr"].get<double>(), 25.0);
+  EXPECT_DOUBLE_EQ(j["mean"]["ssim"].get<double>(), (0.9 + 0.7 + 0.81234) / 3);
+  EXPECT_DOUBLE_EQ(j["splits"]["test"]["psnr"].get<double>(), 25.0);
+  EXPECT_DOUBLE_EQ(j["splits"]["test"]["mse"].get<double>(), (1e-3 + 1e-2) / 2);
+  EXPECT_EQ(j["splits"]["test"]["n_views"], 2);
+  EXPECT_EQ(j["splits"]["test"]["contact_sheet"], "contact_sheet_test.png");
+  EXPECT_EQ(j["splits"]["test"]["contact_sheet_views"], Json::array({"a"}));
+  EXPECT_DOUBLE_EQ(j["splits"]["test_light"]["ssim"].get<double>(), 0.81234);
+  // The splits appear in the file in first-seen order.
+  EXPECT_LT(text.find("\"test\": {"), text.find("\"test_light\": {"));
+  ASSERT_EQ(j["views"].size(), 3u);
+  EXPECT_EQ(j["views"][2]["split"], "test_light");
+  EXPECT_EQ(j["views"][2]["name"], "c|d");
+  EXPECT_EQ(j["views"][2]["width"], 4);
+  EXPECT_EQ(j["views"][2]["height"], 3);
+  EXPECT_DOUBLE_EQ(j["views"][1]["psnr"].get<double>(), 20.0);
+  EXPECT_DOUBLE_EQ(j["views"][1]["mse"].get<double>(), 0.01);
+
+  const std::string md = io::read_file((out / "metrics.md").string());
+  EXPECT_TRUE(contains(md, "- method: ours\n- steps: 3000\n")) << md;
+  EXPECT_TRUE(contains(md, "| split | views | PSNR [dB] | SSIM | MSE |")) << md;
+  EXPECT_TRUE(contains(md, "| test | 2 | 25.00 | 0.8000 | 5.500e-03 |")) << md;
+  EXPECT_TRUE(contains(md, "| test_light | 1 | 25.00 | 0.8123 | 3.162e-03 |")) << md;
+  EXPECT_TRUE(contains(md, "| **mean** | 3 | 25.00 | 0.8041 |")) << md;
+  EXPECT_TRUE(contains(md, "## test\n\n![test contact sheet](contact_sheet_test.png)")) << md;
+  EXPECT_TRUE(contains(md, "Shown: a (1 of 2 views)")) << md;
+  EXPECT_TRUE(contains(md, "| a | 30.00 | 0.9000 | 1.000e-03 |\n| b | 20.00 | 0.7000 | 1.000e-02 |")) << md;
+  EXPECT_TRUE(contains(md, "| c\\|d | 25.00 | 0.8123 |")) << md;  // '|' escaped in a table cell
+  EXPECT_LT(md.find("## test\n"), md.find("## test_light\n"));
+
+  EXPECT_TRUE(fs::exists(out / "contact_sheet_test.png"));
+  EXPECT_TRUE(fs::exists(out / "contact_sheet_test_light.png"));
+  EXPECT_FALSE(fs::exists(out / "test"));  // predictions only when asked
+  // Nothing but the report: no temporary files left behind.
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(out)) {
+    ++files;
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+  }
+  EXPECT_EQ(files, 4);
+}
+
+TEST(Report, WrittenContactSheetAndPredictions) {
+  test::TempDir dir("report");
+  std::vector<ViewResult> views = {view("test", "a", 99, 1, 0.25f, 0.25f), view("test", "b", 10, 0.2, 1.0f, 0.0f)};
+  views[1].prediction[0] = 0.75f;
+  report::ReportOptions o;
+  o.write_predictions = o.write_exr = true;
+  report::write_report(dir.path().string(), views, o);
+
+  const Image sheet = read_image((dir.path() / "contact_sheet_test.png").string());
+  const Image expected = report::contact_sheet(pointers(views));
+  ASSERT_EQ(sheet.width, expected.width);
+  ASSERT_EQ(sheet.height, expected.height);
+  // The PNG holds the sRGB values to 8 bits: the error panels show the map's ends.
+  const int g = 4, w = 4, h = 3;
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(linear_to_srgb(sheet.at(3 * g + 2 * w, g, c)), report::error_colour(0)[c], 0.6 / 255);
+    EXPECT_NEAR(linear_to_srgb(sheet.at(3 * g + 2 * w + 1, 2 * g + h, c)), report::error_colour(1)[c], 0.6 / 255);
+    EXPECT_NEAR(linear_to_srgb(sheet.at(g, g, c)), linear_to_srgb(0.25f), 0.6 / 255);
+  }
+  // Predictions: the EXR is the linear float image, the PNG its sRGB preview.
+  const Image exr = read_image((dir.path() / "test" / "b.exr").string());
+  ASSERT_EQ(exr.width, 4);
+  ASSERT_EQ(exr.height, 3);
+  EXPECT_EQ(exr.pixels, views[1].prediction);
+  const Image png = read_image((dir.path() / "test" / "b.png").string());
+  EXPECT_NEAR(linear_to_srgb(png.at(0, 0, 0)), linear_to_srgb(0.75f), 0.6 / 255);
+  EXPECT_TRUE(fs::exists(dir.path() / "test" / "a.png"));
+}
+
+TEST(Report, MetricsFromTheDeviceAndAPerfectView) {
+  // Real metrics::compare results, including a perfect view (PSNR +inf: null in JSON, "inf" in the lines).
+  const Device d = test::test_device();
+  std::vector<ViewResult> views;
+  for (int k = 0; k < 2; ++k) {
+    ViewResult v = view("test", "v" + std::to_string(k), 0, 0, 0.0f, 0.0f, 12, 12);
+    for (std::size_t i = 0; i < v.reference.size(); ++i) {
+      v.reference[i] = float(i % 7) / 7.0f;
+      v.prediction[i] = v.reference[i] + (k == 0 ? 0.0f : 0.05f * float(i % 3));
+    }
+    v.metrics = metrics::compare(d, v.prediction, v.reference, 12, 12, 3);
+    views.push_back(v);
+  }
+  EXPECT_TRUE(std::isinf(views[0].metrics.psnr));
+  ASSERT_TRUE(std::isfinite(views[1].metrics.psnr));
+  const Json j = Json::parse(report::metrics_json({views[1]}));
+  EXPECT_DOUBLE_EQ(j["views"][0]["psnr"].get<double>(), views[1].metrics.psnr);
+  EXPECT_DOUBLE_EQ(j["views"][0]["ssim"].get<double>(), views[1].metrics.ssim);
+  EXPECT_DOUBLE_EQ(j["mean"]["mse"].get<double>(), views[1].metrics.mse);
+
+  const Json both = Json::parse(report::metrics_json(views));
+  EXPECT_TRUE(both["views"][0]["psnr"].is_null());
+  EXPECT_TRUE(both["mean"]["psnr"].is_null());
+  EXPECT_NEAR(both["views"][0]["ssim"].get<double>(), 1.0, 1e-6);
+  EXPECT_TRUE(contains(report::format_summary_lines(views), "\nPSNR inf\n"));
+}
+
+TEST(Report, BadInputWritesNothing) {
+  test::TempDir dir("report");
+  const std::string old_json = "{\"old\": true}\n";
+  io::write_file_atomic((dir.path() / "metrics.json").string(), old_json);
+  std::vector<ViewResult> views = {view("test", "a", 20, 0.5), view("test", "b", 20, 0.5)};
+  views[1].reference[5] = std::numeric_limits<float>::quiet_NaN();
+  const std::string m = invalid_argument_message([&] { report::write_report(dir.path().string(), views); });
+  EXPECT_TRUE(contains(m, "'test/b'") && contains(m, "NaN")) << m;
+  EXPECT_EQ(io::read_file((dir.path() / "metrics.json").string()), old_json);
+  EXPECT_FALSE(fs::exists(dir.path() / "metrics.md"));
+  EXPECT_FALSE(fs::exists(dir.path() / "contact_sheet_test.png"));
+
+  // Nor does bad meta, and a folder is not created for bad input.
+  views[1].reference[5] = 0.5f;
+  report::ReportOptions o;
+  o.meta = Json::array({1, 2});
+  EXPECT_TRUE(contains(invalid_argument_message([&] { report::write_report((dir.path() / "new").string(), views, o); }),
+                       "meta must be a JSON object"));
+  EXPECT_FALSE(fs::exists(dir.path() / "new"));
+  EXPECT_THROW(report::write_report("", views), InvalidArgument);
+}
+
+TEST(Report, AFailedWriteLeavesTheOldMetricsIntact) {
+  test::TempDir dir("report");
+  const std::vector<ViewResult> views = {view("test", "a", 20, 0.5)};
+  report::write_report(dir.path().string(), views);
+  const std::string old_json = io::read_file((dir.path() / "metrics.json").string());
+
+  // metrics.md cannot be replaced (a non-empty folder is in its way): the write fails naming it, and
+  // metrics.json, written last, still describes the old report.
+  fs::remove(dir.path() / "metrics.md");
+  fs::create_directories(dir.path() / "metrics.md" / "blocker");
+  std::vector<ViewResult> changed = {view("test", "a", 35, 0.95)};
+  try {
+    report::write_report(dir.path().string(), changed);
+    FAIL() << "write_report should have failed";
+  } catch (const IOError& e) {
+    EXPECT_TRUE(contains(e.what(), "metrics.md")) << e.what();
+  }
+  EXPECT_EQ(io::read_file((dir.path() / "metrics.json").string()), old_json);
+  for (const auto& e : fs::directory_iterator(dir.path()))
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+
+  // The output folder's name taken by a file: an IOError naming it, the file untouched.
+  const fs::path file = dir.path() / "taken";
+  std::ofstream(file) << "data";
+  try {
+    report::write_report(file.string(), views);
+    FAIL() << "write_report should have failed";
+  } catch (const IOError& e) {
+    EXPECT_TRUE(contains(e.what(), "taken")) << e.what();
+  }
+  EXPECT_EQ(io::read_file(file.string()), "data");
+}
+
+}  // namespace
+}  // namespace relit
