@@ -9,6 +9,7 @@ PYBIND11_MODULE(_core, m) {
   relit::python::bind_cl(m);  // first: the exception translators the other parts rely on
   relit::python::bind_nn(m);
   relit::python::bind_metrics(m);
+  relit::python::bind_report(m);
   relit::python::bind_scene(m);
   relit::python::bind_method(m);
 }

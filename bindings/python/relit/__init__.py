@@ -36,3 +36,8 @@ __all__ += ["Camera", "PointLight", "Progress", "Scene", "generate_dataset", "re
 from ._core import Model, Trainer, TrainStats, preset, presets  # noqa: F401,E402
 
 __all__ += ["Model", "Trainer", "TrainStats", "preset", "presets"]
+
+# Evaluation reports: metrics.json / metrics.md / contact sheets from predictions and references.
+from ._core import contact_sheet, write_report  # noqa: F401,E402
+
+__all__ += ["contact_sheet", "write_report"]
