@@ -293,7 +293,7 @@ std::string metrics_markdown(const std::vector<ViewResult>& views, const ReportO
       // A whole run config is too long to read inline; metrics.json has it.
       if ((value.is_object() || value.is_array()) && text.size() > 120)
         text = std::string(value.is_object() ? "{…}" : "[…]") + " (" + std::to_string(value.size()) +
-               " entries, see metrics.json)";
+               (value.size() == 1 ? " entry" : " entries") + ", see metrics.json)";
       md << "- " << cell(key) << ": " << cell(text) << "\n";
     }
     md << "\n";
@@ -314,7 +314,7 @@ std::string metrics_markdown(const std::vector<ViewResult>& views, const ReportO
        << "Rows: prediction | reference | error (mean absolute difference of the sRGB images, colour map "
        << "'inferno': black = 0, yellow ≥ " << fixed(options.sheet.error_scale, 2) << "). Shown: ";
     for (std::size_t i = 0; i < shown.size(); ++i) md << (i ? ", " : "") << shown[i];
-    md << " (" << shown.size() << " of " << of.size() << " views).\n\n"
+    md << " (" << shown.size() << " of " << of.size() << (of.size() == 1 ? " view).\n\n" : " views).\n\n")
        << "| view | PSNR [dB] | SSIM | MSE |\n|---|---:|---:|---:|\n";
     for (const auto* v : of)
       md << "| " << cell(v->name) << " | " << fixed(v->metrics.psnr, 2) << " | " << fixed(v->metrics.ssim, 4) << " | "
