@@ -9,6 +9,7 @@
 #include <pybind11/stl.h>
 
 #include "bindings.hpp"
+#include "convert.hpp"
 
 #include <relit/method/trainer.hpp>
 
@@ -20,20 +21,10 @@ namespace relit::python {
 
 namespace {
 
-Json to_json(const py::handle& obj) {
-  return Json::parse(py::module_::import("json").attr("dumps")(obj).cast<std::string>());
-}
-py::object from_json(const Json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
-
-Device pick(const py::object& device) {
-  if (device.is_none()) return Device::select("");
-  if (py::isinstance<Device>(device)) return device.cast<Device>();
-  return Device::select(device.cast<std::string>());
-}
 
 Json config_from(const py::object& config) {
   if (py::isinstance<py::str>(config)) return method::load_run_config(config.cast<std::string>());
-  if (py::isinstance<py::dict>(config)) return to_json(config);
+  if (py::isinstance<py::dict>(config)) return json_from_python(config);
   throw InvalidArgument("config must be a preset name, a .json path or a dict");
 }
 
@@ -78,7 +69,7 @@ py::array_t<float> render(const method::Ours& model, const Camera& camera, const
 void bind_method(py::module_& m) {
   m.def("presets", &method::preset_names, "Names of the built-in run configs (\"fast\", \"paper\").");
   m.def(
-      "preset", [](const std::string& name) { return from_json(method::preset(name)); }, py::arg("name"),
+      "preset", [](const std::string& name) { return json_to_python(method::preset(name)); }, py::arg("name"),
       "A built-in run config as a dict (edit it and pass it to relit.Trainer).");
 
   py::class_<method::TrainStats>(m, "TrainStats", "Where training stands (what `relit train` prints).")
@@ -100,14 +91,14 @@ void bind_method(py::module_& m) {
   py::class_<method::Ours>(m, "Model", "A trained relightable model (\"Ours\"): renders any camera under any point light.")
       .def_static(
           "load",
-          [](const std::string& path, const py::object& device) { return method::load_model(pick(device), path); },
+          [](const std::string& path, const py::object& device) { return method::load_model(device_arg(device), path); },
           py::arg("path"), py::arg("device") = py::none(), "Loads the model of a checkpoint (checkpoint.relit).")
       .def("render", &render, py::arg("camera"), py::arg("light"), py::arg("visibility") = "", py::arg("seed") = 0,
            "Renders camera's image under the point light: float32 (height, width, 3), linear RGB. visibility:\n"
            "\"network\" or \"march\" (default: the model's setting).")
       .def_property_readonly("n_params", &method::Ours::n_params)
       .def_property_readonly("n_visibility_params", &method::Ours::n_vis_params)
-      .def_property_readonly("config", [](const method::Ours& o) { return from_json(o.hyperparams()); });
+      .def_property_readonly("config", [](const method::Ours& o) { return json_to_python(o.hyperparams()); });
 
   py::class_<RunIterator>(m, "_RunIterator")
       .def("__iter__", [](RunIterator& it) -> RunIterator& { return it; })
@@ -116,7 +107,7 @@ void bind_method(py::module_& m) {
   py::class_<method::Trainer>(m, "Trainer", "Trains the model on a dataset folder (relit train in Python).")
       .def(py::init([](const std::string& dataset, const py::object& config, const py::object& out,
                        const py::object& device) {
-             auto t = std::make_unique<method::Trainer>(pick(device), dataset, config_from(config));
+             auto t = std::make_unique<method::Trainer>(device_arg(device), dataset, config_from(config));
              if (!out.is_none()) t->set_output(out.cast<std::string>());
              return t;
            }),
@@ -139,7 +130,7 @@ void bind_method(py::module_& m) {
       .def("save_checkpoint", &method::Trainer::save_checkpoint, py::arg("path"))
       .def("load_checkpoint", &method::Trainer::load_checkpoint, py::arg("path"))
       .def_property_readonly("steps", &method::Trainer::steps)
-      .def_property_readonly("config", [](const method::Trainer& t) { return from_json(t.config()); })
+      .def_property_readonly("config", [](const method::Trainer& t) { return json_to_python(t.config()); })
       .def_property_readonly(
           "model", [](method::Trainer& t) -> method::Ours& { return t.model(); }, py::return_value_policy::reference_internal);
 }

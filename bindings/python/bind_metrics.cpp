@@ -1,5 +1,6 @@
 // Python binding of the image metrics: relit.metrics.compare / psnr / ssim on numpy images.
 #include "bindings.hpp"
+#include "convert.hpp"
 
 #include <pybind11/numpy.h>
 
@@ -22,9 +23,7 @@ metrics::ImageComparison compare(const Image& prediction, const Image& reference
       throw InvalidArgument("prediction and reference must have the same shape");
   const auto h = static_cast<std::uint32_t>(prediction.shape(0)), w = static_cast<std::uint32_t>(prediction.shape(1));
   const auto c = prediction.ndim() == 3 ? static_cast<std::uint32_t>(prediction.shape(2)) : 1u;
-  const Device dev = device.is_none() ? Device::select()
-                     : py::isinstance<py::str>(device) ? Device::select(device.cast<std::string>())
-                                                       : device.cast<Device>();
+  const Device dev = device_arg(device);
   std::vector<float> a(prediction.data(), prediction.data() + prediction.size());
   std::vector<float> b(reference.data(), reference.data() + reference.size());
   py::gil_scoped_release release;

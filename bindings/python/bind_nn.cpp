@@ -4,6 +4,7 @@
 // Each Python object owns its component, a device, and device buffers for its parameters and gradients.
 // Arrays are row-major float32 (samples x features); conversion to relit's tiled layout happens here.
 #include "bindings.hpp"
+#include "convert.hpp"
 
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
@@ -29,18 +30,9 @@ Json to_json(const py::object& config) {
       throw ConfigError("", std::string("config is not valid JSON: ") + e.what());
     }
   }
-  // dict / list / numbers: through Python's json module, which knows every builtin type.
-  const std::string text = py::module_::import("json").attr("dumps")(config).cast<std::string>();
-  return Json::parse(text);
+  return json_from_python(config);
 }
 
-py::object to_python(const Json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
-
-Device device_or_default(const py::object& device) {
-  if (device.is_none()) return Device::select();
-  if (py::isinstance<py::str>(device)) return Device::select(device.cast<std::string>());
-  return device.cast<Device>();
-}
 
 // A 2-D array with `cols` columns → BatchMatrix.
 std::uint32_t rows_of(const FloatArray& a, std::uint32_t cols, const char* what) {
@@ -118,7 +110,7 @@ struct Owned {
 
 struct PyEncoding : Owned<nn::Encoding> {
   PyEncoding(const py::object& config, std::uint32_t n_input_dims, const py::object& dev, std::uint64_t seed) {
-    device = device_or_default(dev);
+    device = device_arg(dev);
     component = nn::create_encoding(to_json(config), n_input_dims);
     workspace = component->make_workspace(device);
     init(seed);
@@ -135,7 +127,7 @@ struct PyEncoding : Owned<nn::Encoding> {
 
 struct PyNetwork : Owned<nn::Network> {
   PyNetwork(const py::object& config, std::uint32_t n_in, std::uint32_t n_out, const py::object& dev, std::uint64_t seed) {
-    device = device_or_default(dev);
+    device = device_arg(dev);
     component = nn::create_network(to_json(config), n_in, n_out);
     workspace = component->make_workspace(device);
     init(seed);
@@ -153,7 +145,7 @@ struct PyNetwork : Owned<nn::Network> {
 struct PyLoss {
   Device device;
   std::unique_ptr<nn::Loss> loss;
-  PyLoss(const py::object& config, const py::object& dev) : device(device_or_default(dev)), loss(nn::create_loss(to_json(config))) {}
+  PyLoss(const py::object& config, const py::object& dev) : device(device_arg(dev)), loss(nn::create_loss(to_json(config))) {}
   py::tuple evaluate(const FloatArray& prediction, const FloatArray& target, float scale) {
     const auto cols = prediction.ndim() == 2 ? static_cast<std::uint32_t>(prediction.shape(1)) : 0u;
     const std::uint32_t n = rows_of(prediction, cols, "prediction");
@@ -172,7 +164,7 @@ struct PyOptimizer {
   std::unique_ptr<nn::Optimizer> optimizer;
   Buffer<float> params, grads;
   PyOptimizer(const py::object& config, const py::object& dev)
-      : device(device_or_default(dev)), optimizer(nn::create_optimizer(to_json(config))) {}
+      : device(device_arg(dev)), optimizer(nn::create_optimizer(to_json(config))) {}
   FloatArray step(const FloatArray& p, const FloatArray& g) {
     if (p.size() != g.size()) throw InvalidArgument("params and grads differ in size");
     const auto n = static_cast<std::size_t>(p.size());
@@ -200,7 +192,7 @@ void bind_owned_common(py::class_<T>& cls) {
       .def_property_readonly("n_input_dims", [](const T& t) { return t.component->n_input_dims(); })
       .def_property_readonly("n_output_dims", [](const T& t) { return t.component->n_output_dims(); })
       .def_property_readonly("type", [](const T& t) { return t.component->type(); })
-      .def_property_readonly("hyperparams", [](const T& t) { return to_python(t.component->hyperparams()); },
+      .def_property_readonly("hyperparams", [](const T& t) { return json_to_python(t.component->hyperparams()); },
                              "resolved hyperparameters (dict with 'type')")
       .def_property_readonly("device", [](const T& t) { return t.device; });
 }
@@ -235,14 +227,14 @@ void bind_nn(py::module_& root) {
       .def(py::init<const py::object&, const py::object&>(), py::arg("config"), py::arg("device") = py::none())
       .def("evaluate", &PyLoss::evaluate, py::arg("prediction"), py::arg("target"), py::arg("scale") = 1.0f,
            "Returns (mean loss, dL/dprediction times scale).")
-      .def_property_readonly("hyperparams", [](const PyLoss& l) { return to_python(l.loss->hyperparams()); });
+      .def_property_readonly("hyperparams", [](const PyLoss& l) { return json_to_python(l.loss->hyperparams()); });
 
   py::class_<PyOptimizer>(m, "Optimizer", "Optimizer(config, device=None): {\"type\": \"Adam\", \"learning_rate\": ...}.")
       .def(py::init<const py::object&, const py::object&>(), py::arg("config"), py::arg("device") = py::none())
       .def("step", &PyOptimizer::step, py::arg("params"), py::arg("grads"), "One update; returns the new parameters.")
       .def_property_readonly("step_count", [](const PyOptimizer& o) { return o.optimizer->step_count(); })
       .def_property_readonly("learning_rate", [](const PyOptimizer& o) { return o.optimizer->learning_rate(); })
-      .def_property_readonly("hyperparams", [](const PyOptimizer& o) { return to_python(o.optimizer->hyperparams()); });
+      .def_property_readonly("hyperparams", [](const PyOptimizer& o) { return json_to_python(o.optimizer->hyperparams()); });
 
   m.def("config_reference", &config_reference_markdown, "The configuration reference (docs/config.md) as Markdown.");
 }

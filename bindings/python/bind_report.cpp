@@ -8,6 +8,7 @@
 #include <pybind11/pybind11.h>
 
 #include "bindings.hpp"
+#include "convert.hpp"
 
 #include <relit/cl/device.hpp>
 #include <relit/error.hpp>
@@ -84,9 +85,7 @@ std::vector<report::ViewResult> views_from(const py::iterable& items, bool need_
     ++index;
   }
   if (!missing.empty()) {
-    const Device dev = device.is_none()                   ? Device::select()
-                       : py::isinstance<py::str>(device) ? Device::select(device.cast<std::string>())
-                                                         : device.cast<Device>();
+    const Device dev = device_arg(device);
     report::validate(views);  // a clear error (NaN, sizes, names) before any kernel runs
     py::gil_scoped_release release;
     for (std::size_t i : missing) {
@@ -99,7 +98,7 @@ std::vector<report::ViewResult> views_from(const py::iterable& items, bool need_
 
 Json to_json(const py::object& obj) {
   if (obj.is_none()) return Json::object();
-  return Json::parse(py::module_::import("json").attr("dumps")(obj).cast<std::string>());
+  return json_from_python(obj);
 }
 
 std::string path_of(const py::object& path) {

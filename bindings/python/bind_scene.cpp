@@ -8,6 +8,7 @@
 #include <pybind11/stl.h>
 
 #include "bindings.hpp"
+#include "convert.hpp"
 
 #include <relit/dataset.hpp>
 #include <relit/pathtrace.hpp>
@@ -19,27 +20,8 @@ namespace relit::python {
 
 namespace {
 
-Json to_json(const py::handle& obj) {
-  return Json::parse(py::module_::import("json").attr("dumps")(obj).cast<std::string>());
-}
 
-py::object from_json(const Json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
 
-// Wraps a Python callable as a ProgressCallback: it runs with the GIL held; None or True continue.
-ProgressCallback wrap_progress(const py::object& fn) {
-  if (fn.is_none()) return {};
-  return [fn](const Progress& p) {
-    py::gil_scoped_acquire gil;
-    py::object r = fn(p);
-    return r.is_none() || r.cast<bool>();
-  };
-}
-
-Device pick(const py::object& device) {
-  if (device.is_none()) return Device::select("");
-  if (py::isinstance<Device>(device)) return device.cast<Device>();
-  return Device::select(device.cast<std::string>());
-}
 
 py::array_t<float> to_numpy(const Image& img) {
   py::array_t<float> a({img.height, img.width, img.channels});
@@ -93,12 +75,12 @@ void bind_scene(py::module_& m) {
           "A built-in scene: cloud, smoke, blobs, spheres or torus.")
       .def_static("load", &Scene::load, py::arg("path"), py::call_guard<py::gil_scoped_release>())
       .def_static("from_json", [](const py::object& obj, const std::string& base_dir) {
-            const Json j = py::isinstance<py::str>(obj) ? Json::parse(obj.cast<std::string>()) : to_json(obj);
+            const Json j = py::isinstance<py::str>(obj) ? Json::parse(obj.cast<std::string>()) : json_from_python(obj);
             py::gil_scoped_release release;
             return Scene::from_json(j, base_dir);
           }, py::arg("description"), py::arg("base_dir") = ".", "From a dict or a JSON string.")
       .def_static("builtin_names", &Scene::builtin_names)
-      .def_property_readonly("description", [](const Scene& s) { return from_json(s.description); },
+      .def_property_readonly("description", [](const Scene& s) { return json_to_python(s.description); },
                              "the resolved JSON description (a dict)")
       .def_readwrite("cameras", &Scene::cameras)
       .def_readwrite("lights", &Scene::lights)
@@ -123,8 +105,8 @@ void bind_scene(py::module_& m) {
           const std::vector<PointLight> ls = lights.is_none() ? scene.lights : lights.cast<std::vector<PointLight>>();
           RenderSettings rs;
           rs.spp = spp, rs.seed = seed, rs.max_bounces = max_bounces;
-          const Device dev = pick(device);
-          const ProgressCallback cb = wrap_progress(progress);
+          const Device dev = device_arg(device);
+          const ProgressCallback cb = progress_arg(progress);
           RenderResult r;
           {
             py::gil_scoped_release release;
@@ -155,8 +137,8 @@ void bind_scene(py::module_& m) {
             if (range.size() != 2) throw InvalidArgument("intensity must be a number or a (min, max) pair");
             s.intensity_min = range[0], s.intensity_max = range[1];
           }
-          const Device dev = pick(device);
-          const ProgressCallback cb = wrap_progress(progress);
+          const Device dev = device_arg(device);
+          const ProgressCallback cb = progress_arg(progress);
           py::gil_scoped_release release;
           generate_dataset(dev, scene, out, s, cb);
         },

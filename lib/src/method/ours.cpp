@@ -34,10 +34,17 @@ Json default_visibility() {
 // defaulting to the entry of `defaults`).
 struct SubConfig {
   config::Reader reader;
-  SubConfig(config::Reader& parent, const std::string& key, const Json& defaults, const std::string& description)
-      : reader(parent.sub(key, defaults, "object", description), parent.pointer(key), key) {}
+  config::Docs* docs;
+  SubConfig(config::Reader& parent, const std::string& key, const Json& defaults, const std::string& description,
+            config::Docs* docs_out)
+      : reader(parent.sub(key, defaults, "object", description), parent.pointer(key), key), docs(docs_out) {}
   Json component(const std::string& key, const Json& defaults, const std::string& description) {
     return reader.sub(key, defaults.at(key), "component", description);
+  }
+  /// Rejects unknown keys and records the object's keys for the config reference.
+  void finish() {
+    reader.finish();
+    if (docs) docs->emplace_back(reader.pointer(), reader.docs());
   }
 };
 
@@ -129,7 +136,7 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   s.n_features = r.uint("n_features", 11, 1, 256, "feature columns passed from the property net to the SH head");
   s.intensity_reference = r.number("intensity_reference", 1000.0f, 1e-6f, 1e9f,
                                    "I_ref [W/sr]: the SH head predicts indirect light per unit I / I_ref");
-  const float light_scale =
+  s.light_position_scale =
       r.number("light_position_scale", 0.125f, 1e-6f, 1e3f, "the SH head sees the light position times this");
   s.light_conditioned = r.boolean("light_conditioned", true,
                                   "condition the SH head on the light position (false: c = c(x), an ablation)");
@@ -147,16 +154,14 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   }
   s.inference_visibility = r.choice("inference_visibility", "network", {"network", "march"},
                                     "visibility when rendering: the network (as the paper) or a density-grid march");
-  m_light_scale = light_scale;
 
   const std::uint32_t n_sh = s.renderer.sh_lmax < 0 ? 0 : std::uint32_t((s.renderer.sh_lmax + 1) * (s.renderer.sh_lmax + 1));
   // Property network: [0,1]^3 position → sigma, albedo, g, features.
   {
-    SubConfig sub(r, "property", default_property(), "property network F_θ: {encoding, network}");
+    SubConfig sub(r, "property", default_property(), "property network F_θ: {encoding, network}", docs);
     const Json enc = sub.component("encoding", default_property(), "position encoding (3 dims)");
     Json net = sub.component("network", default_property(), "the trunk; its output heads are set by the model");
-    sub.reader.finish();
-    record(sub.reader);
+    sub.finish();
     const std::string ptr = r.pointer("property");
     net = with_heads(net, ptr + "/network",
                      Json::array({{{"n_dims", 1}, {"activation", "Softplus"}}, {{"n_dims", 3}, {"activation", "Sigmoid"}},
@@ -170,11 +175,10 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   }
   // Indirect SH head: [features, light position] → 3 n_sh coefficients per unit intensity.
   if (n_sh > 0) {
-    SubConfig sub(r, "indirect", default_indirect(), "indirect SH head h_θ: {light_encoding, network}");
+    SubConfig sub(r, "indirect", default_indirect(), "indirect SH head h_θ: {light_encoding, network}", docs);
     const Json lenc = sub.component("light_encoding", default_indirect(), "encoding of the light position (3 dims)");
     Json net = sub.component("network", default_indirect(), "the head's MLP (output activation: none)");
-    sub.reader.finish();
-    record(sub.reader);
+    sub.finish();
     const std::string ptr = r.pointer("indirect");
     net = with_heads(net, ptr + "/network", Json::array({{{"n_dims", 3 * n_sh}, {"activation", "None"}}}));
     Json nested = Json::array({{{"type", "Identity"}, {"n_dims_to_encode", s.n_features}}});
@@ -194,12 +198,11 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   // Visibility network: [position, direction] → V.
   {
     SubConfig sub(r, "visibility", default_visibility(),
-                  "visibility network V_ψ: {position_encoding, direction_encoding, network}");
+                  "visibility network V_ψ: {position_encoding, direction_encoding, network}", docs);
     Json penc = sub.component("position_encoding", default_visibility(), "position encoding (3 dims)");
     Json denc = sub.component("direction_encoding", default_visibility(), "direction encoding (3 dims)");
     Json net = sub.component("network", default_visibility(), "the MLP (output: one sigmoid)");
-    sub.reader.finish();
-    record(sub.reader);
+    sub.finish();
     const std::string ptr = r.pointer("visibility");
     net = with_heads(net, ptr + "/network", Json::array({{{"n_dims", 1}, {"activation", "Sigmoid"}}}));
     penc["n_dims_to_encode"] = 3;
@@ -300,7 +303,7 @@ void Ours::forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bo
   const std::uint32_t light_cols = n_sh > 0 ? pass.light_in.cols() : 0;
   Buffer<float>& light_data = n_sh > 0 ? pass.light_in.data() : pass.vis_in.data();
   m_device.kernel("method.cl", "light_inputs")
-      .args(n, spr, rays, pass.positions.data(), m_light_scale, pass.net_pos.data(), light_data,
+      .args(n, spr, rays, pass.positions.data(), m_settings.light_position_scale, pass.net_pos.data(), light_data,
             m_settings.light_conditioned ? light_cols : 0u, m_settings.n_features, pass.vis_in.data())
       .launch(n, 64);
   mark(timer, "sampling");
@@ -308,21 +311,22 @@ void Ours::forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bo
   const nn::ConstParamSlice theta_sh{&m_params, m_property->n_params()};
   const nn::ConstParamSlice psi{&m_vis_params, 0};
   if (training) m_property->forward(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
-  else m_property->inference(m_device, theta, pass.net_pos, pass.props_raw);
+  else m_property->inference(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
   nn::copy_columns(m_device, pass.props_raw, 0, pass.props, render::kSigma, 4);  // sigma, albedo
   nn::copy_columns(m_device, pass.props_raw, 4, pass.props, render::kG, 1, 0.95f);
   mark(timer, "property net forward");
   if (march) {
     render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps, pass.vis);
   } else {
-    m_visibility->inference(m_device, psi, pass.vis_in, pass.vis);
+    // The render loss does not train ψ: inference, its scratch in the workspace visibility_step() reuses.
+    m_visibility->inference(m_device, psi, pass.vis_in, pass.vis, *pass.ws_visibility);
   }
   nn::copy_columns(m_device, pass.vis, 0, pass.props, render::kVisibility, 1);
   mark(timer, "visibility net forward");
   if (n_sh > 0) {
     nn::copy_columns(m_device, pass.props_raw, kPropHeads, pass.light_in, 0, m_settings.n_features);
     if (training) m_indirect->forward(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
-    else m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw);
+    else m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,
                                    1.0f / m_settings.intensity_reference);
     mark(timer, "SH head forward");
@@ -396,13 +400,14 @@ void Ours::refresh_density_grid() {
   if (m_grid_positions.cols() != 3) {
     m_grid_positions = nn::BatchMatrix(m_device, chunk, 3);
     m_grid_props = nn::BatchMatrix(m_device, chunk, kPropHeads + m_settings.n_features);
+    m_grid_ws = m_property->make_workspace(m_device);
   }
   for (std::uint32_t first = 0; first < total; first += chunk) {
     const std::uint32_t n = std::min(chunk, total - first);
     m_grid_positions.resize(n);
     m_grid_props.resize(n);
     m_device.kernel("method.cl", "grid_positions").args(n, first, d[0], d[1], d[2], m_grid_positions.data()).launch(n, 64);
-    m_property->inference(m_device, {&m_params, 0}, m_grid_positions, m_grid_props);
+    m_property->inference(m_device, {&m_params, 0}, m_grid_positions, m_grid_props, *m_grid_ws);
     m_device.kernel("method.cl", "column_to_flat")
         .args(n, m_grid_props.cols(), 0u, m_grid_props.data(), m_grid.sigma, first)
         .launch(n, 64);

@@ -6,6 +6,7 @@ namespace relit::nn {
 namespace {
 struct CompositeWorkspace final : Workspace {
   BatchMatrix encoded, d_encoded;
+  BatchMatrix encoded_inference;  // inference's own, so a workspace shared with training keeps both sizes
   std::unique_ptr<Workspace> encoding, network;
 };
 
@@ -54,11 +55,23 @@ std::unique_ptr<Workspace> NetworkWithInputEncoding::make_workspace(const Device
 
 void NetworkWithInputEncoding::inference(const Device& device, ConstParamSlice params, const BatchMatrix& input,
                                          BatchMatrix& output) const {
-  // Inference has no workspace of its own: encode into a temporary (inference is not the hot loop).
+  // Without a workspace: encode into a temporary (the workspace overload reuses one).
   BatchMatrix encoded(device, input.batch(), m_encoding->n_output_dims());
   auto ew = m_encoding->make_workspace(device);
   m_encoding->forward(device, params, input, encoded, 0, ew.get());
   m_network->inference(device, {params.buffer, params.offset + m_encoding->n_params()}, encoded, output);
+}
+
+void NetworkWithInputEncoding::inference(const Device& device, ConstParamSlice params, const BatchMatrix& input,
+                                         BatchMatrix& output, Workspace& workspace) const {
+  auto& w = cast(workspace);
+  // The encodings want their output padded exactly as their input: reallocate when the padding changes.
+  if (w.encoded_inference.padded() != padded_batch(input.batch()) ||
+      w.encoded_inference.cols() != m_encoding->n_output_dims())
+    w.encoded_inference = BatchMatrix(device, input.batch(), m_encoding->n_output_dims());
+  w.encoded_inference.resize(input.batch());
+  m_encoding->forward(device, params, input, w.encoded_inference, 0, w.encoding.get());
+  m_network->inference(device, {params.buffer, params.offset + m_encoding->n_params()}, w.encoded_inference, output);
 }
 
 void NetworkWithInputEncoding::forward(const Device& device, ConstParamSlice params, const BatchMatrix& input,

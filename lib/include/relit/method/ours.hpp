@@ -33,6 +33,7 @@ struct OursSettings {
   render::RendererSettings renderer;
   std::uint32_t n_features = 11;          ///< feature columns the property net passes to the SH head
   float intensity_reference = 1000.0f;    ///< I_ref: the SH head predicts indirect light per I / I_ref
+  float light_position_scale = 0.125f;    ///< the SH head sees the light position times this
   bool light_conditioned = true;          ///< false: c = c(x), the position-only ablation
   std::uint32_t grid_resolution = 64;     ///< density grid for visibility targets (per axis)
   std::uint32_t grid_refresh = 16;        ///< refresh the grid every this many training steps
@@ -133,7 +134,6 @@ class Ours {
   Device m_device;
   OursSettings m_settings;
   Json m_resolved;
-  float m_light_scale = 0.125f;
   std::unique_ptr<render::VolumeRenderer> m_renderer;
   std::unique_ptr<nn::NetworkWithInputEncoding> m_property, m_indirect, m_visibility;
   Buffer<float> m_params, m_grads, m_vis_params, m_vis_grads;

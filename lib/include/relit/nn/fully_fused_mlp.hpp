@@ -53,6 +53,7 @@ class FullyFusedMLP final : public Network {
   std::uint32_t n_output_dims() const override { return m_n_output; }
 
   std::unique_ptr<Workspace> make_workspace(const Device& device) const override;
+  using Network::inference;
   void inference(const Device& device, ConstParamSlice params, const BatchMatrix& input,
                  BatchMatrix& output) const override;
   void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,

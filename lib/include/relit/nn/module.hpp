@@ -84,6 +84,13 @@ class Network : public Module {
   /// Inference: output = f(input), nothing saved.
   virtual void inference(const Device& device, ConstParamSlice params, const BatchMatrix& input,
                          BatchMatrix& output) const = 0;
+  /// Inference that keeps its scratch (encoded inputs, ...) in `workspace` instead of allocating it, so a
+  /// loop of inference calls allocates nothing. Leaves whatever a previous forward() saved there invalid.
+  virtual void inference(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
+                         Workspace& workspace) const {
+    (void)workspace;
+    inference(device, params, input, output);
+  }
   /// Training forward: as inference, saving in `workspace` what backward needs.
   virtual void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
                        Workspace& workspace) const = 0;

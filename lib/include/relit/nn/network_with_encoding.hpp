@@ -23,8 +23,11 @@ class NetworkWithInputEncoding final : public Network {
   std::uint32_t n_output_dims() const override { return m_network->n_output_dims(); }
 
   std::unique_ptr<Workspace> make_workspace(const Device& device) const override;
+  using Network::inference;
   void inference(const Device& device, ConstParamSlice params, const BatchMatrix& input,
                  BatchMatrix& output) const override;
+  void inference(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
+                 Workspace& workspace) const override;
   void forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
                Workspace& workspace) const override;
   void backward(const Device& device, ConstParamSlice params, const BatchMatrix& input, const BatchMatrix& output,
