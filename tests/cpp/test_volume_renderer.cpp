@@ -479,6 +479,7 @@ TEST(VolumeRendererEnvironment, EnvironmentSamplesAreRequiredExactlyWithEnvironm
   expect_message([&] { with_env.forward(rays, 1, t, delta, props6, dirs, basis, rad, color, trans, &env4); },
                  "n_env_dirs");
   EXPECT_NO_THROW(with_env.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans, &env4));
+  dev.finish();  // leave no work queued when the process exits
 }
 
 }  // namespace relit

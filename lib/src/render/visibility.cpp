@@ -47,10 +47,11 @@ void march_visibility_directions(const Device& device, const nn::BatchMatrix& po
   check_grid(grid, steps, "march_visibility_directions");
   out.resize(n);
   if (n == 0) return;
-  const std::size_t items = std::size_t(round_up(n, nn::kBatchTile)) * n_dirs;
+  const auto n_tiles = static_cast<std::uint32_t>(round_up(n, nn::kBatchTile) / nn::kBatchTile);
   device.kernel("visibility.cl", "march_directions", {{"MARCH_STEPS", std::to_string(steps)}})
-      .args(n, n_dirs, positions.data(), dirs.data(), grid.sigma, grid.dims[0], grid.dims[1], grid.dims[2], out.data())
-      .launch(items, 64);
+      .args(n_tiles, n_dirs, positions.data(), dirs.data(), grid.sigma, grid.dims[0], grid.dims[1], grid.dims[2],
+            out.data())
+      .launch(std::size_t(n_tiles) * n_dirs, 16);
 }
 
 }  // namespace relit::render
