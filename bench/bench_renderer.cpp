@@ -80,7 +80,8 @@ struct Batch {
 Batch make_batch(const Device& dev, const render::VolumeRenderer& r, std::uint32_t n_rays, std::mt19937& rng) {
   const std::uint32_t n = n_rays * r.settings().n_samples, cols = r.prop_cols();
   Batch b{Buffer<float>(dev, random_rays(n_rays, rng)), Buffer<float>(dev, n), Buffer<float>(dev, n),
-          Buffer<float>(dev, 3 * n_rays), Buffer<float>(dev, n_rays), Buffer<float>(dev, std::vector<float>(3 * n_rays, 1.0f)),
+          Buffer<float>(dev, 3 * n_rays), Buffer<float>(dev, n_rays),
+          Buffer<float>(dev, std::vector<float>(3 * n_rays, 1.0f)),
           BatchMatrix(dev, n, 3), BatchMatrix(dev, n, cols), BatchMatrix(dev, n, 3), BatchMatrix(dev, n, 3),
           BatchMatrix(dev, n, cols)};
   std::uniform_real_distribution<float> u(0, 1);
@@ -90,7 +91,9 @@ Batch make_batch(const Device& dev, const render::VolumeRenderer& r, std::uint32
     row[0] = 3 * u(rng);
     for (int c = 1; c < 4; ++c) row[c] = u(rng);
     row[4] = 1.8f * u(rng) - 0.9f;
-    for (std::uint32_t f = 5; f < cols; ++f) row[f] = f < render::kSH ? u(rng) : (f < r.env_visibility_col() ? 0.2f * u(rng) - 0.05f : u(rng));
+    // visibilities in [0, 1], SH coefficients mostly positive
+    for (std::uint32_t f = 5; f < cols; ++f)
+      row[f] = f >= render::kSH && f < r.env_visibility_col() ? 0.2f * u(rng) - 0.05f : u(rng);
   }
   b.props.upload_row_major(p);
   r.sample(b.rays, n_rays, true, 1, b.t, b.delta, b.pos);
@@ -222,8 +225,9 @@ int main(int argc, char** argv) {
         std::uniform_real_distribution<float> x(-1, 1);
         for (auto& v : xs) v = x(rng);
         pos.upload_row_major(xs);
-        entry["march_quarter_batch_ms"] =
-            1e3 * median_time(dev, a.reps, [&] { render::march_visibility_directions(dev, pos, env->dirs(), density, 64, vis); });
+        entry["march_quarter_batch_ms"] = 1e3 * median_time(dev, a.reps, [&] {
+          render::march_visibility_directions(dev, pos, env->dirs(), density, 64, vis);
+        });
         entry["march_samples"] = quarter;
       }
       report["timings"].push_back(entry);

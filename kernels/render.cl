@@ -194,7 +194,8 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
   float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
 #if N_ENV > 0
   for (uint j = 0; j < N_ENV; ++j) {
-    const float16 pv = hg_phase16(L.g, (float16)(dir_cosine(L.wo, env_dirs, j))) * TILE_COL(props, tile, PROP_COLS, ENV_COL + j);
+    const float16 pv =
+        hg_phase16(L.g, (float16)(dir_cosine(L.wo, env_dirs, j))) * TILE_COL(props, tile, PROP_COLS, ENV_COL + j);
     s_r = fma(pv, TILED(env_weights, 3, j, 0), s_r);
     s_g = fma(pv, TILED(env_weights, 3, j, 1), s_g);
     s_b = fma(pv, TILED(env_weights, 3, j, 2), s_b);
@@ -236,7 +237,8 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
 __kernel void render_radiance_backward(const uint n_tiles, __global const float* restrict rays,
                                        __global const float* restrict t, __global const float* restrict props,
                                        __global const float* restrict dirs, __global const float* restrict sh_basis,
-                                       __global const float* restrict env_dirs, __global const float* restrict env_weights,
+                                       __global const float* restrict env_dirs,
+                                       __global const float* restrict env_weights,
                                        __global const float* restrict d_radiance, __global float* restrict d_props) {
   const uint tile = get_global_id(0);
   if (tile >= n_tiles) return;

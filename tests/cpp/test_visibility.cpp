@@ -188,9 +188,11 @@ TEST(Visibility, BadShapesAreErrors) {
   EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 0, vis), InvalidArgument);
   BatchMatrix dirs(d, 4, 3), out(d, 16, 4), out3(d, 16, 3), dirs2(d, 4, 2);
   const render::DensityGrid ok{{1, 1, 1}, Buffer<float>(d, 1)};
-  EXPECT_THROW(render::march_visibility_directions(d, pos, dirs, ok, 8, out3), InvalidArgument);  // one column per direction
+  // The output needs one column per direction, the directions 3 columns, the grid its voxels, steps >= 1.
+  EXPECT_THROW(render::march_visibility_directions(d, pos, dirs, ok, 8, out3), InvalidArgument);
   EXPECT_THROW(render::march_visibility_directions(d, pos, dirs2, ok, 8, out), InvalidArgument);
-  EXPECT_THROW(render::march_visibility_directions(d, pos, dirs, {{2, 2, 2}, Buffer<float>(d, 7)}, 8, out), InvalidArgument);
+  EXPECT_THROW(render::march_visibility_directions(d, pos, dirs, {{2, 2, 2}, Buffer<float>(d, 7)}, 8, out),
+               InvalidArgument);
   EXPECT_THROW(render::march_visibility_directions(d, pos, dirs, ok, 0, out), InvalidArgument);
   EXPECT_NO_THROW(render::march_visibility_directions(d, pos, dirs, ok, 8, out));
   d.finish();  // leave no work queued when the process exits

@@ -468,7 +468,8 @@ TEST(VolumeRendererEnvironment, EnvironmentSamplesAreRequiredExactlyWithEnvironm
       EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
     }
   };
-  expect_message([&] { with_env.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans); }, "EnvironmentSamples");
+  expect_message([&] { with_env.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans); },
+                 "EnvironmentSamples");
   expect_message([&] { with_env.backward(rays, 1, t, delta, props, dirs, basis, rad, color, dcol, drad, dprops); },
                  "EnvironmentSamples");
   expect_message([&] { with_env.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans, &env8); },

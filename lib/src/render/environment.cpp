@@ -44,7 +44,8 @@ void EnvironmentSamples::draw(std::uint32_t seed, std::uint32_t iteration) {
 void EnvironmentSamples::fill_background(Buffer<float>& rays, std::uint32_t n_rays) const {
   if (rays.size() < std::size_t(n_rays) * kRayFloats)
     throw InvalidArgument("EnvironmentSamples::fill_background: the ray buffer holds " +
-                          std::to_string(rays.size() / kRayFloats) + " records, " + std::to_string(n_rays) + " requested");
+                          std::to_string(rays.size() / kRayFloats) + " records, " + std::to_string(n_rays) +
+                          " requested");
   if (n_rays == 0) return;
   m_device.kernel("environment.cl", "env_background")
       .args(n_rays, std::uint32_t(m_visible), m_texels, m_width, m_height, m_scale, rays)
