@@ -15,7 +15,7 @@ __kernel void pathtrace_render(
     __global const float4* albedo, const int4 albedo_dims, const float4 albedo_g,
     __global const float* sdf, const int4 sdf_dims, const float4 material,
     __global const float4* lights, const uint n_lights,
-    __global const float4* env, __global const float* env_pdf, __global const float* env_marginal,
+    __global const float4* env, __global const float* env_pdf_uv, __global const float* env_marginal,
     __global const float* env_conditional, const int4 env_dims, const float env_scale,
     __global float4* accum, __global float4* accum_sq) {
   const size_t gid = get_global_id(0);
@@ -28,8 +28,8 @@ __kernel void pathtrace_render(
   s.albedo = albedo_dims.w ? albedo : 0; s.albedo_dims = albedo_dims;
   s.albedo_const = albedo_g.xyz; s.g = albedo_g.w;
   s.sdf = sdf; s.sdf_dims = sdf_dims; s.base_color = material.xyz; s.roughness = material.w;
-  s.env = env; s.env_pdf = env_pdf; s.env_marginal = env_marginal; s.env_conditional = env_conditional;
-  s.env_dims = env_dims; s.env_scale = env_scale;
+  s.env = env_map(env, env_pdf_uv, env_marginal, env_conditional, env_dims.x, env_dims.y, env_scale);
+  s.env_dims = env_dims;
 
   const float px = (float)(pixel % width), py = (float)(pixel / width);
   const float focal = cam_params.x, w = cam_params.y, h = cam_params.z;

@@ -28,7 +28,7 @@ __kernel void probe_brdf_sample(const uint n, const uint seed, const float4 wo_r
 #define PROBE_SCENE_ARGS                                                                                   \
   __global const float *density, const int4 density_dims, const float density_scale,                      \
       __global const float *majorant, const int4 majorant_dims, __global const float4 *env,                 \
-      __global const float *env_pdf, __global const float *env_marginal, __global const float *env_conditional, \
+      __global const float *env_pdf_uv, __global const float *env_marginal, __global const float *env_conditional, \
       const int4 env_dims
 
 #define PROBE_SCENE_INIT                                                                                   \
@@ -36,8 +36,8 @@ __kernel void probe_brdf_sample(const uint n, const uint seed, const float4 wo_r
   s.density = density; s.density_dims = density_dims; s.density_scale = density_scale;                   \
   s.majorant = majorant; s.majorant_dims = majorant_dims; s.albedo = 0; s.albedo_dims = (int4)(0);        \
   s.albedo_const = (float3)(1.0f); s.g = 0.0f; s.sdf = 0; s.sdf_dims = (int4)(0);                         \
-  s.base_color = (float3)(0.0f); s.roughness = 1.0f; s.env = env; s.env_pdf = env_pdf;                   \
-  s.env_marginal = env_marginal; s.env_conditional = env_conditional; s.env_dims = env_dims; s.env_scale = 1.0f;
+  s.base_color = (float3)(0.0f); s.roughness = 1.0f;                                                      \
+  s.env = env_map(env, env_pdf_uv, env_marginal, env_conditional, env_dims.x, env_dims.y, 1.0f); s.env_dims = env_dims;
 
 // Environment sampling: out[i] = (direction, pdf reported by the sampler); pdf_at[i] = pdf evaluated at it.
 __kernel void probe_env_sample(const uint n, const uint seed, PROBE_SCENE_ARGS, __global float4* out,
@@ -48,9 +48,9 @@ __kernel void probe_env_sample(const uint n, const uint seed, PROBE_SCENE_ARGS, 
   Rng rng = rng_init(seed, (uint)i, 0u);
   const float u1 = rng_uniform(&rng), u2 = rng_uniform(&rng);
   float pdf;
-  const float3 d = pt_env_sample(&s, u1, u2, &pdf);
+  const float3 d = env_sample(&s.env, u1, u2, &pdf);
   out[i] = (float4)(d, pdf);
-  pdf_at[i] = pt_env_pdf(&s, d);
+  pdf_at[i] = env_pdf(&s.env, d);
 }
 
 // Transmittance estimates along ray r (origin rays[2r], direction rays[2r+1], t in [rays[2r].w, rays[2r+1].w])

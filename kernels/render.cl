@@ -1,5 +1,5 @@
 // render.cl: the neural volume renderer of DESIGN §4.2 — stratified ray sampling, per-sample in-scattered
-// radiance (point light + SH indirect light), alpha compositing, and the backward passes of both.
+// radiance (point light + environment + SH indirect light), alpha compositing, and the backward passes of both.
 //
 // Samples are numbered s = ray * N_SAMPLES + i, so the 16 samples of a BatchMatrix tile all belong to one
 // ray (N_SAMPLES is a multiple of 16). Per-sample kernels work on one tile per work-item with float16 lanes
@@ -9,15 +9,19 @@
 // Ray record (RAY_FLOATS = 20 floats, float4-aligned):
 //   [ origin.xyz, t_near ][ direction.xyz, t_far ][ light_pos.xyz, 0 ][ intensity.rgb, 0 ][ background.rgb, 0 ]
 // Sample properties (BatchMatrix columns):
-//   0 sigma  1-3 albedo  4 g  5 visibility  6.. SH coefficients, channel-major: c[ch * N_SH + j]
+//   0 sigma  1-3 albedo  4 g  5 visibility (point light)  6.. SH coefficients, channel-major: c[ch * N_SH + j]
+//   ENV_COL + j (= 6 + 3 N_SH + j): visibility toward environment direction j, j < N_ENV
 // Radiance (BatchMatrix, 3 columns): a_i ⊙ S_i, the light each sample sends toward the camera per unit
 // extinction-weighted density.
 //
 //   S_dir = p(w_o, w_l; g) V I / |p_l - x|^2
+//   S_env = sum_j p(w_o, w_j; g) V_j weight_j,  weight_j = E(w_j) / (pdf(w_j) N_ENV)   (N_ENV > 0; RGB weights)
 //   S_ind = (4 pi / K) sum_k p(w_o, w_k; g) max(0, sum_j c_j Y_j(w_k))          (INDIRECT_MODE 0)
 //   S_ind = sum_lm g^l c_lm Y_lm(-w_o)                                          (INDIRECT_MODE 1)
 // Mode 1 is the closed form of the HG convolution (Funk-Hecke; exact when the clamp is inactive): there
-// `sh_basis` holds Y_j(-w_o) per ray (an n_rays x N_SH tiled matrix) and `dirs` is unused.
+// `sh_basis` holds Y_j(-w_o) per ray (an n_rays x N_SH tiled matrix) and `dirs` is unused. The N_ENV
+// environment directions and weights (N_ENV x 3 tiled each) are drawn once per iteration for the whole batch
+// (environment.cl); with N_ENV = 0 the environment is compiled out and its arguments are unused.
 // Directions point away from the sample (seed appendix A); w_o = -d. HG with the seed's +2g convention.
 #include "common.clh"
 #include "geometry.clh"
@@ -34,8 +38,12 @@
 #ifndef N_DIRS
 #define N_DIRS 64
 #endif
+#ifndef N_ENV
+#define N_ENV 0
+#endif
 #define RAY_FLOATS 20
-#define PROP_COLS (6 + 3 * N_SH)
+#define ENV_COL (6 + 3 * N_SH)
+#define PROP_COLS (6 + 3 * N_SH + N_ENV)
 #define INV_4PI 0.07957747154594767f
 
 // Samples of one tile as float16: 16 consecutive floats of the tiled layout.
@@ -58,12 +66,12 @@ inline float16 hg_dphase16_dg(float16 g, float16 mu) {
   return INV_4PI * r5 * (-2.0f * g * d - 3.0f * (1.0f - g * g) * (g + mu));
 }
 
-#if N_SH > 0
-// mu = w_o . w_k for indirect direction k (a tiled n_dirs x 3 matrix).
+// mu = w_o . w_k for direction k of a tiled n x 3 matrix (indirect or environment directions).
 inline float dir_cosine(float3 wo, __global const float* dirs, uint k) {
   return wo.x * TILED(dirs, 3, k, 0) + wo.y * TILED(dirs, 3, k, 1) + wo.z * TILED(dirs, 3, k, 2);
 }
 
+#if N_SH > 0
 // Each channel's SH expansion sum_j c_j Y_j(w_k), before the max(0, .) clamp.
 inline void sh_expand(const float16* c, __global const float* sh_basis, uint k, float16* lr, float16* lg, float16* lb) {
   float16 r = 0.0f, g = 0.0f, b = 0.0f;
@@ -173,16 +181,26 @@ inline TileLight tile_light(__global const float* ray, __global const float* t, 
   return L;
 }
 
-// radiance = albedo ⊙ (S_dir + S_ind) for the 16 samples of each tile.
+// radiance = albedo ⊙ (S_dir + S_env + S_ind) for the 16 samples of each tile.
 __kernel void render_radiance(const uint n_tiles, __global const float* restrict rays, __global const float* restrict t,
                               __global const float* restrict props, __global const float* restrict dirs,
-                              __global const float* restrict sh_basis, __global float* restrict radiance) {
+                              __global const float* restrict sh_basis, __global const float* restrict env_dirs,
+                              __global const float* restrict env_weights, __global float* restrict radiance) {
   const uint tile = get_global_id(0);
   if (tile >= n_tiles) return;
   const uint ray_index = tile / (N_SAMPLES / 16);
   const TileLight L = tile_light(rays + (size_t)ray_index * RAY_FLOATS, t, props, tile);
   const float16 p_l = hg_phase16(L.g, L.mu_l) * L.direct;
   float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
+#if N_ENV > 0
+  for (uint j = 0; j < N_ENV; ++j) {
+    const float16 pv =
+        hg_phase16(L.g, (float16)(dir_cosine(L.wo, env_dirs, j))) * TILE_COL(props, tile, PROP_COLS, ENV_COL + j);
+    s_r = fma(pv, TILED(env_weights, 3, j, 0), s_r);
+    s_g = fma(pv, TILED(env_weights, 3, j, 1), s_g);
+    s_b = fma(pv, TILED(env_weights, 3, j, 2), s_b);
+  }
+#endif
 #if N_SH > 0 && INDIRECT_MODE == 1
   float16 c[3 * N_SH], ind[3], unused[3];
   for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
@@ -214,10 +232,13 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
 }
 
 // Given dL/d(radiance): dL/d(albedo), dL/dg and dL/d(SH coefficients) into d_props (columns 1..4 and 6..);
-// sigma's column is written by the compositing backward, visibility's is zero (gradient isolation).
+// sigma's column is written by the compositing backward, the visibility columns (point light and
+// environment) get zero: the render loss must not reach the visibility network (gradient isolation).
 __kernel void render_radiance_backward(const uint n_tiles, __global const float* restrict rays,
                                        __global const float* restrict t, __global const float* restrict props,
                                        __global const float* restrict dirs, __global const float* restrict sh_basis,
+                                       __global const float* restrict env_dirs,
+                                       __global const float* restrict env_weights,
                                        __global const float* restrict d_radiance, __global float* restrict d_props) {
   const uint tile = get_global_id(0);
   if (tile >= n_tiles) return;
@@ -234,6 +255,19 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
   float16 d_g = hg_dphase16_dg(L.g, L.mu_l) * dir_common *
                 (er * L.intensity.x + eg * L.intensity.y + eb * L.intensity.z);
+#if N_ENV > 0
+  for (uint j = 0; j < N_ENV; ++j) {
+    const float16 mu = (float16)(dir_cosine(L.wo, env_dirs, j));
+    const float16 v = TILE_COL(props, tile, PROP_COLS, ENV_COL + j);
+    const float wr = TILED(env_weights, 3, j, 0), wg = TILED(env_weights, 3, j, 1), wb = TILED(env_weights, 3, j, 2);
+    const float16 pv = hg_phase16(L.g, mu) * v;
+    s_r = fma(pv, wr, s_r);
+    s_g = fma(pv, wg, s_g);
+    s_b = fma(pv, wb, s_b);
+    d_g = fma(hg_dphase16_dg(L.g, mu) * v, fma(er, wr, fma(eg, wg, eb * wb)), d_g);
+    TILE_STORE((float16)(0.0f), d_props, tile, PROP_COLS, ENV_COL + j);
+  }
+#endif
 #if N_SH > 0 && INDIRECT_MODE == 1
   float16 c[3 * N_SH], ind[3], dind[3];
   for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);

@@ -1,8 +1,9 @@
 // visibility.cl: targets of the visibility network (DESIGN §4.3) — the transmittance of the learned density
-// from each sample toward its ray's point light, by a midpoint-rule march through a cached density grid
-// (a dense grid of sigma over [-1, 1]^3, refreshed from the property network every few iterations).
+// from each sample toward its ray's point light, or toward each of a set of directions shared by all samples
+// (the environment's), by a midpoint-rule march through a cached density grid (a dense grid of sigma over
+// [-1, 1]^3, refreshed from the property network every few iterations).
 //
-//   V(x) = exp(-sum_j sigma(x + t_j w_l) dt),  t_j = (j + 1/2) dt,  dt = d / MARCH_STEPS
+//   V(x, w) = exp(-sum_j sigma(x + t_j w) dt),  t_j = (j + 1/2) dt,  dt = d / MARCH_STEPS
 // where d is the distance from x to where the shadow ray leaves the box (or to the light, if nearer).
 #include "geometry.clh"
 
@@ -14,28 +15,100 @@
 #endif
 #define RAY_FLOATS 20
 
-__kernel void march_to_light(const uint n, __global const float* restrict positions, __global const float* restrict rays,
-                             __global const float* restrict grid, const int nx, const int ny, const int nz,
-                             __global float* restrict visibility) {
-  const uint s = get_global_id(0);
-  if (s >= n) return;
-  const size_t tile = s / 16, lane = s % 16;
-  const float3 x = (float3)(positions[(tile * 3 + 0) * 16 + lane], positions[(tile * 3 + 1) * 16 + lane],
-                            positions[(tile * 3 + 2) * 16 + lane]);
-  __global const float* ray = rays + (size_t)(s / N_SAMPLES) * RAY_FLOATS;
-  const float3 to_light = (float3)(ray[8], ray[9], ray[10]) - x;
-  const float light_distance = length(to_light);
-  const float3 w = to_light / light_distance;
+// exp(-optical depth) from x along unit w up to `max_distance` or the exit of the box, whichever is nearer.
+inline float march_transmittance(__global const float* grid, int4 dims, float3 x, float3 w, float max_distance) {
   float t0, t1;
   float d = 0.0f;
-  if (box_intersect(x, w, &t0, &t1)) d = fmin(t1, light_distance) - fmax(t0, 0.0f);
+  if (box_intersect(x, w, &t0, &t1)) d = fmin(t1, max_distance) - fmax(t0, 0.0f);
   float tau = 0.0f;
   if (d > 0.0f) {
-    const int4 dims = (int4)(nx, ny, nz, 0);
     const float dt = d / MARCH_STEPS;
     const float start = fmax(t0, 0.0f);
     for (int j = 0; j < MARCH_STEPS; ++j) tau += grid_lookup(grid, dims, fma(start + (j + 0.5f) * dt, w, x));
     tau *= dt;
   }
-  visibility[tile * 16 + lane] = exp(-tau);
+  return exp(-tau);
+}
+
+inline float3 tiled_position(__global const float* positions, uint s) {
+  const size_t tile = s / 16, lane = s % 16;
+  return (float3)(positions[(tile * 3 + 0) * 16 + lane], positions[(tile * 3 + 1) * 16 + lane],
+                  positions[(tile * 3 + 2) * 16 + lane]);
+}
+
+// One work-item per sample: V toward the light of the sample's ray (visibility: n x 1 tiled).
+__kernel void march_to_light(const uint n, __global const float* restrict positions, __global const float* restrict rays,
+                             __global const float* restrict grid, const int nx, const int ny, const int nz,
+                             __global float* restrict visibility) {
+  const uint s = get_global_id(0);
+  if (s >= n) return;
+  const float3 x = tiled_position(positions, s);
+  __global const float* ray = rays + (size_t)(s / N_SAMPLES) * RAY_FLOATS;
+  const float3 to_light = (float3)(ray[8], ray[9], ray[10]) - x;
+  const float light_distance = length(to_light);
+  visibility[s] = march_transmittance(grid, (int4)(nx, ny, nz, 0), x, to_light / light_distance, light_distance);
+}
+
+// Trilinear lookup (as grid_lookup) at 16 points at once: the coordinate math runs on float16 lanes, the 8
+// corner values are gathered lane by lane.
+inline float16 gather16(__global const float* g, int16 i) {
+  return (float16)(g[i.s0], g[i.s1], g[i.s2], g[i.s3], g[i.s4], g[i.s5], g[i.s6], g[i.s7], g[i.s8], g[i.s9], g[i.sa],
+                   g[i.sb], g[i.sc], g[i.sd], g[i.se], g[i.sf]);
+}
+
+inline void grid_axis16(float16 p, int n, int16* lo, int16* hi, float16* f) {
+  const float nf = (float)n;
+  const float16 u = clamp(fma(p + 1.0f, 0.5f * nf, -0.5f), 0.0f, nf - 1.0f);
+  *lo = min(convert_int16(floor(u)), n - 1);
+  *hi = min(*lo + 1, n - 1);
+  *f = u - convert_float16(*lo);
+}
+
+inline float16 grid_lookup16(__global const float* g, int4 n, float16 x, float16 y, float16 z) {
+  int16 x0, x1, y0, y1, z0, z1;
+  float16 fx, fy, fz;
+  grid_axis16(x, n.x, &x0, &x1, &fx);
+  grid_axis16(y, n.y, &y0, &y1, &fy);
+  grid_axis16(z, n.z, &z0, &z1, &fz);
+  const int16 r00 = (z0 * n.y + y0) * n.x, r10 = (z0 * n.y + y1) * n.x, r01 = (z1 * n.y + y0) * n.x,
+              r11 = (z1 * n.y + y1) * n.x;
+  const float16 c00 = mix(gather16(g, r00 + x0), gather16(g, r00 + x1), fx);
+  const float16 c10 = mix(gather16(g, r10 + x0), gather16(g, r10 + x1), fx);
+  const float16 c01 = mix(gather16(g, r01 + x0), gather16(g, r01 + x1), fx);
+  const float16 c11 = mix(gather16(g, r11 + x0), gather16(g, r11 + x1), fx);
+  return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
+}
+
+// V from every sample toward every one of n_dirs directions (dirs: n_dirs x 3 tiled), to the exit of the box:
+// out is an n x n_dirs tiled matrix. One work-item per (tile of 16 samples, direction): the direction is
+// shared, the 16 samples are float16 lanes, and the result is one contiguous 16-float column of a tile
+// (padding rows of the last tile included, computed from their zero positions).
+__kernel void march_directions(const uint n_tiles, const uint n_dirs, __global const float* restrict positions,
+                               __global const float* restrict dirs, __global const float* restrict grid, const int nx,
+                               const int ny, const int nz, __global float* restrict out) {
+  const uint item = get_global_id(0);
+  if (item >= n_tiles * n_dirs) return;
+  const uint tile = item / n_dirs, k = item % n_dirs;
+  const size_t dbase = (size_t)(k / 16) * 48 + k % 16;
+  const float3 w = (float3)(dirs[dbase], dirs[dbase + 16], dirs[dbase + 32]);
+  const float16 px = vload16(0, positions + ((size_t)tile * 3 + 0) * 16);
+  const float16 py = vload16(0, positions + ((size_t)tile * 3 + 1) * 16);
+  const float16 pz = vload16(0, positions + ((size_t)tile * 3 + 2) * 16);
+  // Slab test per lane, as box_intersect.
+  const float3 inv = 1.0f / w;
+  const float16 ax = (-1.0f - px) * inv.x, bx = (1.0f - px) * inv.x;
+  const float16 ay = (-1.0f - py) * inv.y, by = (1.0f - py) * inv.y;
+  const float16 az = (-1.0f - pz) * inv.z, bz = (1.0f - pz) * inv.z;
+  const float16 t0 = fmax(fmax(fmin(ax, bx), fmin(ay, by)), fmin(az, bz));
+  const float16 t1 = fmin(fmin(fmax(ax, bx), fmax(ay, by)), fmax(az, bz));
+  const float16 start = fmax(t0, 0.0f);
+  const float16 d = fmax(t1 - start, 0.0f);  // 0 for a lane whose ray misses the box: transmittance 1
+  const float16 dt = d * (1.0f / MARCH_STEPS);
+  const int4 dims = (int4)(nx, ny, nz, 0);
+  float16 tau = 0.0f;
+  for (int j = 0; j < MARCH_STEPS; ++j) {
+    const float16 tj = fma((float16)(j + 0.5f), dt, start);
+    tau += grid_lookup16(grid, dims, fma(tj, w.x, px), fma(tj, w.y, py), fma(tj, w.z, pz));
+  }
+  vstore16(exp(-tau * dt), 0, out + ((size_t)tile * n_dirs + k) * 16);
 }

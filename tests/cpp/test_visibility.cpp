@@ -1,5 +1,6 @@
-// Visibility targets: a homogeneous grid gives exp(-sigma d) exactly; a random grid matches a double-precision
-// march with the same quadrature and trilinear lookup.
+// Visibility targets, toward the point light and toward environment directions: a homogeneous grid gives
+// exp(-sigma d) exactly; a random grid matches a double-precision march with the same quadrature and trilinear
+// lookup.
 #include "test_support.hpp"
 
 #include <relit/render/visibility.hpp>
@@ -111,6 +112,73 @@ TEST(Visibility, RandomGridMatchesDoublePrecisionMarch) {
   }
 }
 
+namespace {
+
+// Distance from x along unit w to where the ray leaves the box.
+double exit_distance(const V3& x, const V3& w) {
+  double t1 = 1e30;
+  for (int a = 0; a < 3; ++a) t1 = std::min(t1, std::max((-1 - x[a]) / w[a], (1 - x[a]) / w[a]));
+  return std::max(t1, 0.0);
+}
+
+struct DirectionSetup {
+  std::vector<float> positions, dirs, visibility;  // row-major: n x 3, n_dirs x 3, n x n_dirs
+};
+
+DirectionSetup run_directions(const Device& d, const std::vector<float>& grid, int n, std::uint32_t steps,
+                              std::uint32_t n_dirs) {
+  const std::uint32_t n_pos = 75;  // a partial last tile
+  std::mt19937 rng(12);
+  std::normal_distribution<float> nd;
+  std::uniform_real_distribution<float> u(-0.98f, 0.98f);
+  std::vector<float> positions, dirs;
+  for (std::uint32_t i = 0; i < n_pos; ++i) positions.insert(positions.end(), {u(rng), u(rng), u(rng)});
+  for (std::uint32_t k = 0; k < n_dirs; ++k) {
+    const V3 w = V3(nd(rng), nd(rng), nd(rng)).normalized();
+    dirs.insert(dirs.end(), {float(w.x()), float(w.y()), float(w.z())});
+  }
+  BatchMatrix pos(d, n_pos, 3), dm(d, n_dirs, 3), vis(d, 1, n_dirs);
+  pos.upload_row_major(positions);
+  dm.upload_row_major(dirs);
+  render::DensityGrid g{{n, n, n}, Buffer<float>(d, grid)};
+  render::march_visibility_directions(d, pos, dm, g, steps, vis);
+  EXPECT_EQ(vis.batch(), n_pos);
+  return {positions, dirs, vis.download_row_major()};
+}
+
+}  // namespace
+
+TEST(Visibility, DirectionsThroughAHomogeneousGridTransmitExpMinusSigmaD) {
+  const std::uint32_t n_dirs = 20;  // not a multiple of 16: the directions' last tile is partial
+  const auto s = run_directions(test::test_device(), std::vector<float>(8, 0.6f), 2, 16, n_dirs);
+  for (std::size_t i = 0; i < s.positions.size() / 3; ++i)
+    for (std::uint32_t k = 0; k < n_dirs; ++k) {
+      const V3 x(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2]);
+      const V3 w(s.dirs[3 * k], s.dirs[3 * k + 1], s.dirs[3 * k + 2]);
+      EXPECT_NEAR(s.visibility[i * n_dirs + k], std::exp(-0.6 * exit_distance(x, w)), 2e-6) << i << " " << k;
+    }
+}
+
+TEST(Visibility, DirectionsThroughARandomGridMatchDoublePrecisionMarch) {
+  const int n = 8;
+  const std::uint32_t steps = 40, n_dirs = 32;
+  std::mt19937 rng(10);
+  std::uniform_real_distribution<float> u(0, 3);
+  std::vector<float> grid(n * n * n);
+  for (auto& v : grid) v = u(rng);
+  const auto s = run_directions(test::test_device(), grid, n, steps, n_dirs);
+  for (std::size_t i = 0; i < s.positions.size() / 3; ++i)
+    for (std::uint32_t k = 0; k < n_dirs; ++k) {
+      const V3 x(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2]);
+      const V3 w = V3(s.dirs[3 * k], s.dirs[3 * k + 1], s.dirs[3 * k + 2]);
+      const double d = exit_distance(x, w);
+      double tau = 0;
+      for (std::uint32_t j = 0; j < steps; ++j) tau += lookup(grid, n, x + (j + 0.5) * d / steps * w);
+      tau *= d / steps;
+      EXPECT_NEAR(-std::log(s.visibility[i * n_dirs + k]), tau, 2e-5 * (1 + tau)) << i << " " << k;
+    }
+}
+
 TEST(Visibility, BadShapesAreErrors) {
   const Device d = test::test_device();
   Buffer<float> rays(d, kRayFloats);
@@ -118,6 +186,16 @@ TEST(Visibility, BadShapesAreErrors) {
   EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{2, 2, 2}, Buffer<float>(d, 7)}, 8, vis), InvalidArgument);
   EXPECT_THROW(render::march_visibility(d, rays, 2, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 8, vis), InvalidArgument);
   EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 0, vis), InvalidArgument);
+  BatchMatrix dirs(d, 4, 3), out(d, 16, 4), out3(d, 16, 3), dirs2(d, 4, 2);
+  const render::DensityGrid ok{{1, 1, 1}, Buffer<float>(d, 1)};
+  // The output needs one column per direction, the directions 3 columns, the grid its voxels, steps >= 1.
+  EXPECT_THROW(render::march_visibility_directions(d, pos, dirs, ok, 8, out3), InvalidArgument);
+  EXPECT_THROW(render::march_visibility_directions(d, pos, dirs2, ok, 8, out), InvalidArgument);
+  EXPECT_THROW(render::march_visibility_directions(d, pos, dirs, {{2, 2, 2}, Buffer<float>(d, 7)}, 8, out),
+               InvalidArgument);
+  EXPECT_THROW(render::march_visibility_directions(d, pos, dirs, ok, 0, out), InvalidArgument);
+  EXPECT_NO_THROW(render::march_visibility_directions(d, pos, dirs, ok, 8, out));
+  d.finish();  // leave no work queued when the process exits
 }
 
 }  // namespace relit

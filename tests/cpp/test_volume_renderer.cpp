@@ -2,6 +2,7 @@
 // backward against central finite differences of that reference, sampling, and known answers.
 #include "test_support.hpp"
 
+#include <relit/render/environment.hpp>
 #include <relit/render/volume_renderer.hpp>
 #include <relit/sh.hpp>
 
@@ -25,17 +26,20 @@ constexpr double kPi = 3.14159265358979323846;
 double hg(double g, double mu) { return (1 - g * g) / (4 * kPi * std::pow(1 + g * g + 2 * g * mu, 1.5)); }
 
 struct RayScene {
-  std::uint32_t n_rays, n_samples, n_sh, n_dirs;
+  std::uint32_t n_rays, n_samples, n_sh, n_dirs, n_env = 0;
   std::vector<float> rays;   // kRayFloats per ray
-  std::vector<double> props;  // row-major, n_rays * n_samples x (6 + 3 n_sh)
+  std::vector<double> props;  // row-major, n_rays * n_samples x (6 + 3 n_sh + n_env)
   std::vector<float> dirs, basis;
-  std::uint32_t cols() const { return 6 + 3 * n_sh; }
+  std::vector<float> env_dirs, env_weights;  // n_env x 3 each, row-major
+  std::uint32_t env_col() const { return 6 + 3 * n_sh; }
+  std::uint32_t cols() const { return 6 + 3 * n_sh + n_env; }
 };
 
-RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int lmax, std::uint32_t n_dirs, unsigned seed) {
+RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int lmax, std::uint32_t n_dirs, unsigned seed,
+                      std::uint32_t n_env = 0) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0, 1);
-  RayScene s{n_rays, n_samples, lmax < 0 ? 0u : std::uint32_t((lmax + 1) * (lmax + 1)), n_dirs, {}, {}, {}, {}};
+  RayScene s{n_rays, n_samples, lmax < 0 ? 0u : std::uint32_t((lmax + 1) * (lmax + 1)), n_dirs, n_env, {}, {}, {}, {}, {}, {}};
   auto unit = [&] {
     Vec3 v(u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1);
     while (v.norm() < 0.1 || v.norm() > 1) v = Vec3(u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1);
@@ -58,6 +62,7 @@ RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int lmax, s
     s.props.push_back(1.8 * u(rng) - 0.9);                              // g
     s.props.push_back(u(rng));                                          // visibility
     for (std::uint32_t j = 0; j < 3 * s.n_sh; ++j) s.props.push_back(2 * u(rng) - 0.7);  // SH, both signs
+    for (std::uint32_t j = 0; j < n_env; ++j) s.props.push_back(u(rng));                   // environment visibility
   }
   for (std::uint32_t k = 0; k < n_dirs; ++k) {
     const Vec3 w = unit();
@@ -100,6 +105,10 @@ std::vector<double> reference_color(const RayScene& s, const std::vector<double>
           for (int l = 0, j = 0; l <= lmax; ++l)
             for (int m = -l; m <= l; ++m, ++j) S[ch] += std::pow(g, l) * p[6 + ch * s.n_sh + j] * y[j];
       }
+      for (std::uint32_t j = 0; j < s.n_env; ++j) {
+        const Vec3 wj(s.env_dirs[3 * j], s.env_dirs[3 * j + 1], s.env_dirs[3 * j + 2]);
+        for (int ch = 0; ch < 3; ++ch) S[ch] += hg(g, wo.dot(wj)) * p[s.env_col() + j] * s.env_weights[3 * j + ch];
+      }
       for (std::uint32_t k = 0; !closed_form && k < s.n_dirs; ++k) {
         const Vec3 wk(s.dirs[3 * k], s.dirs[3 * k + 1], s.dirs[3 * k + 2]);
         for (int ch = 0; ch < 3; ++ch) {
@@ -123,8 +132,8 @@ struct DeviceRun {
 };
 
 DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::vector<float>& d_color,
-                     bool closed_form = false) {
-  VolumeRenderer renderer(dev, {s.n_samples, lmax, s.n_dirs, closed_form});
+                     bool closed_form = false, const render::EnvironmentSamples* env = nullptr) {
+  VolumeRenderer renderer(dev, {s.n_samples, lmax, s.n_dirs, closed_form, s.n_env});
   const std::uint32_t n = s.n_rays * s.n_samples;
   Buffer<float> rays(dev, s.rays), t(dev, n), delta(dev, n), color(dev, 3 * s.n_rays), trans(dev, s.n_rays),
       dcol(dev, d_color);
@@ -135,8 +144,8 @@ DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::
   BatchMatrix pos(dev, n, 3), props(dev, n, s.cols()), rad(dev, n, 3), drad(dev, n, 3), dprops(dev, n, s.cols());
   props.upload_row_major(std::vector<float>(s.props.begin(), s.props.end()));
   renderer.sample(rays, s.n_rays, false, 0, t, delta, pos);
-  renderer.forward(rays, s.n_rays, t, delta, props, dirs, basis, rad, color, trans);
-  renderer.backward(rays, s.n_rays, t, delta, props, dirs, basis, rad, color, dcol, drad, dprops);
+  renderer.forward(rays, s.n_rays, t, delta, props, dirs, basis, rad, color, trans, env);
+  renderer.backward(rays, s.n_rays, t, delta, props, dirs, basis, rad, color, dcol, drad, dprops, env);
   return {color.read(), trans.read(), dprops.download_row_major()};
 }
 
@@ -150,7 +159,8 @@ std::vector<float> random_weights(std::size_t n, unsigned seed) {
 }
 
 // Checks the device's dL/dproperties against central differences of the double reference, on every
-// `stride`-th sample; the visibility column must get zero gradient. Returns the number of values checked.
+// `stride`-th sample; every visibility column (point light and environment) must get exactly zero gradient.
+// Returns the number of values checked.
 int expect_gradients_match_finite_differences(const RayScene& s, const std::vector<float>& w,
                                               const std::vector<float>& d_props, bool closed_form,
                                               std::uint32_t stride) {
@@ -168,8 +178,12 @@ int expect_gradients_match_finite_differences(const RayScene& s, const std::vect
       auto plus = s.props, minus = s.props;
       plus[smp * cols + f] += h;
       minus[smp * cols + f] -= h;
-      const double fd = f == render::kVisibility ? 0.0 : (loss(plus) - loss(minus)) / (2 * h);
-      EXPECT_NEAR(d_props[smp * cols + f], fd, 1e-4 * std::abs(fd) + 2e-5) << "sample " << smp << " column " << f;
+      if (f == render::kVisibility || f >= s.env_col()) {
+        EXPECT_EQ(d_props[smp * cols + f], 0.0f) << "sample " << smp << " visibility column " << f;
+      } else {
+        const double fd = (loss(plus) - loss(minus)) / (2 * h);
+        EXPECT_NEAR(d_props[smp * cols + f], fd, 1e-4 * std::abs(fd) + 2e-5) << "sample " << smp << " column " << f;
+      }
       ++checked;
     }
   return checked;
@@ -331,6 +345,142 @@ TEST(VolumeRenderer, IndirectBasisIsUniformOnTheSphereAndMatchesHostSH) {
   EXPECT_NE(basis.dirs().download_row_major(), dirs);
   basis.draw(5, 17);
   EXPECT_EQ(basis.dirs().download_row_major(), dirs);
+}
+
+// ---- environment light (S_env) ---------------------------------------------------------------------------
+
+namespace {
+
+// A random environment: texels of independent RGB spread over two decades, so the importance weights
+// E / (pdf N_e) differ per channel and per direction.
+EnvironmentLight random_environment(int width, int height, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0, 1);
+  Image img(width, height, 3);
+  for (auto& v : img.pixels) v = 0.05f * std::pow(10.0f, 2.0f * u(rng));
+  return EnvironmentLight(img, 1.5f, false);
+}
+
+void attach(RayScene& s, const render::EnvironmentSamples& env) {
+  s.env_dirs = env.dirs().download_row_major();
+  s.env_weights = env.weights().download_row_major();
+}
+
+}  // namespace
+
+TEST(VolumeRendererEnvironment, ForwardMatchesDoubleReference) {
+  const Device dev = test::test_device();
+  const EnvironmentLight light = random_environment(16, 8, 2);
+  for (const int lmax : {-1, 2}) {
+    RayScene s = random_scene(7, 32, lmax, 16, 40 + lmax, 32);
+    render::EnvironmentSamples env(dev, light, 32);
+    env.draw(7, 3);
+    attach(s, env);
+    if (lmax < 0)  // the environment alone: no point light
+      for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i) s.props[i * s.cols() + render::kVisibility] = 0;
+    const auto got = run_device(dev, s, lmax, std::vector<float>(3 * s.n_rays, 1.f), false, &env);
+    const auto ref = reference_color(s, s.props);
+    RayScene dark = s;  // the same scene with every environment direction occluded
+    for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i)
+      for (std::uint32_t j = 0; j < s.n_env; ++j) dark.props[i * s.cols() + s.env_col() + j] = 0;
+    const auto ref_dark = reference_color(dark, dark.props);
+    double env_part = 0;
+    for (std::size_t i = 0; i < ref.size(); ++i) {
+      EXPECT_NEAR(got.color[i], ref[i], 2e-5 * std::abs(ref[i]) + 1e-6) << "lmax " << lmax << " value " << i;
+      env_part += (ref[i] - ref_dark[i]) / ref.size();
+    }
+    EXPECT_GT(env_part, 0.05) << "the environment must contribute visibly for the comparison to mean something";
+  }
+}
+
+TEST(VolumeRendererEnvironment, BackwardMatchesFiniteDifferencesAndIsolatesVisibility) {
+  const Device dev = test::test_device();
+  const int lmax = 1;
+  RayScene s = random_scene(3, 16, lmax, 8, 6, 8);
+  render::EnvironmentSamples env(dev, random_environment(8, 4, 5), 8);
+  env.draw(1, 9);
+  attach(s, env);
+  const auto w = random_weights(3 * s.n_rays, 4);
+  const auto got = run_device(dev, s, lmax, w, false, &env);
+  EXPECT_GT(expect_gradients_match_finite_differences(s, w, got.d_props, false, 5), 200);
+  // Gradient isolation on every sample, not only the checked ones: all visibility columns are exactly zero,
+  // although the colour depends on them.
+  for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i) {
+    ASSERT_EQ(got.d_props[i * s.cols() + render::kVisibility], 0.0f) << i;
+    for (std::uint32_t j = 0; j < s.n_env; ++j) ASSERT_EQ(got.d_props[i * s.cols() + s.env_col() + j], 0.0f) << i;
+  }
+}
+
+// Known answer: a uniform environment of radiance E, visibility 1 and no other light: S_env estimates
+// int p(w_o, w; g) E dw = E for any g (the phase integrates to 1). Averaged over many draws (iterations),
+// every sample's radiance (albedo 1) must be E within its standard error.
+TEST(VolumeRendererEnvironment, UniformEnvironmentGivesItsRadianceForAnyG) {
+  const Device dev = test::test_device();
+  const std::uint32_t n_env = 32, n_draws = 2000, n = 16;
+  const Vec3 E(0.7, 1.3, 2.1);
+  render::EnvironmentSamples env(dev, EnvironmentLight::uniform({0.7f, 1.3f, 2.1f}, false), n_env);
+  VolumeRenderer renderer(dev, {n, -1, 1, false, n_env});
+  const float rec[kRayFloats] = {-3, 0.2f, 0.1f, 0, 1, 0, 0, 0, 0, 5, 0, 0, 100, 100, 100, 0, 0, 0, 0, 0};
+  Buffer<float> rays(dev, std::vector<float>(rec, rec + kRayFloats)), t(dev, n), delta(dev, n), color(dev, 3),
+      trans(dev, 1);
+  BatchMatrix pos(dev, n, 3), props(dev, n, renderer.prop_cols()), rad(dev, n, 3), none(dev, 1, 3), basis(dev, 1, 0);
+  std::vector<float> pv(n * renderer.prop_cols(), 1.0f);  // sigma, albedo, V_env = 1
+  for (std::uint32_t i = 0; i < n; ++i) {
+    pv[i * renderer.prop_cols() + render::kG] = -0.8f + 1.6f * i / (n - 1);  // g from -0.8 to 0.8
+    pv[i * renderer.prop_cols() + render::kVisibility] = 0.0f;              // no point light
+  }
+  props.upload_row_major(pv);
+  renderer.sample(rays, 1, false, 0, t, delta, pos);
+  std::vector<double> sum(3 * n, 0.0), sum_sq(3 * n, 0.0);
+  for (std::uint32_t it = 0; it < n_draws; ++it) {
+    env.draw(11, it);
+    renderer.forward(rays, 1, t, delta, props, none, basis, rad, color, trans, &env);
+    const auto r = rad.download_row_major();
+    for (std::uint32_t i = 0; i < 3 * n; ++i) sum[i] += r[i], sum_sq[i] += double(r[i]) * r[i];
+  }
+  for (std::uint32_t i = 0; i < n; ++i)
+    for (int ch = 0; ch < 3; ++ch) {
+      const double mean = sum[3 * i + ch] / n_draws;
+      const double se = std::sqrt(std::max(sum_sq[3 * i + ch] / n_draws - mean * mean, 0.0) / n_draws);
+      EXPECT_NEAR(mean, E[ch], 4 * se + 1e-4 * E[ch]) << "g " << pv[i * renderer.prop_cols() + render::kG];
+      EXPECT_LT(se, 0.02 * E[ch]) << "too noisy to tell: g " << pv[i * renderer.prop_cols() + render::kG];
+    }
+}
+
+TEST(VolumeRendererEnvironment, EnvironmentSamplesAreRequiredExactlyWithEnvironmentDirections) {
+  const Device dev = test::test_device();
+  const EnvironmentLight light = EnvironmentLight::uniform({1, 1, 1}, false);
+  render::EnvironmentSamples env4(dev, light, 4), env8(dev, light, 8);
+  EXPECT_THROW(VolumeRenderer(dev, {16, -1, 4, false, 5000}), InvalidArgument);
+  VolumeRenderer with_env(dev, {16, -1, 4, false, 4}), without(dev, {16, -1, 4});
+  EXPECT_EQ(with_env.prop_cols(), 10u);
+  EXPECT_EQ(with_env.env_visibility_col(), 6u);
+  EXPECT_EQ(VolumeRenderer(dev, {16, 2, 4, false, 32}).env_visibility_col(), render::env_visibility_column(9));
+  EXPECT_EQ(VolumeRenderer(dev, {16, 2, 4, false, 32}).prop_cols(), 6u + 27u + 32u);
+  Buffer<float> rays(dev, kRayFloats), t(dev, 16), delta(dev, 16), color(dev, 3), trans(dev, 1), dcol(dev, 3);
+  BatchMatrix props(dev, 16, 10), props6(dev, 16, 6), rad(dev, 16, 3), drad(dev, 16, 3), dprops(dev, 16, 10),
+      dirs(dev, 4, 3), basis(dev, 4, 0);
+  auto expect_message = [](auto&& call, const std::string& part) {
+    try {
+      call();
+      ADD_FAILURE() << "expected InvalidArgument mentioning '" << part << "'";
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  };
+  expect_message([&] { with_env.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans); },
+                 "EnvironmentSamples");
+  expect_message([&] { with_env.backward(rays, 1, t, delta, props, dirs, basis, rad, color, dcol, drad, dprops); },
+                 "EnvironmentSamples");
+  expect_message([&] { with_env.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans, &env8); },
+                 "n_env_dirs = 4");
+  expect_message([&] { without.forward(rays, 1, t, delta, props6, dirs, basis, rad, color, trans, &env4); },
+                 "n_env_dirs");
+  // The property matrix must carry the environment's visibility columns.
+  expect_message([&] { with_env.forward(rays, 1, t, delta, props6, dirs, basis, rad, color, trans, &env4); },
+                 "n_env_dirs");
+  EXPECT_NO_THROW(with_env.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans, &env4));
+  dev.finish();  // leave no work queued when the process exits
 }
 
 }  // namespace relit

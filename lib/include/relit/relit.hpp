@@ -27,6 +27,7 @@
 #include <relit/nn/trainer.hpp>
 #include <relit/pathtrace.hpp>
 #include <relit/progress.hpp>
+#include <relit/render/environment.hpp>
 #include <relit/report.hpp>
 #include <relit/render/rays.hpp>
 #include <relit/render/volume_renderer.hpp>

@@ -1,9 +1,17 @@
 // VolumeRenderer: argument checks and kernel launches (the math is in kernels/render.cl).
 #include <relit/cl/program.hpp>
 #include <relit/nn/registry.hpp>
+#include <relit/render/environment.hpp>
 #include <relit/render/volume_renderer.hpp>
 
 namespace relit::render {
+
+namespace {
+// Without environment light the kernels' environment arguments are unused: an empty buffer passes NULL.
+const Buffer<float> kNoBuffer;
+const Buffer<float>& env_dirs(const EnvironmentSamples* env) { return env ? env->dirs().data() : kNoBuffer; }
+const Buffer<float>& env_weights(const EnvironmentSamples* env) { return env ? env->weights().data() : kNoBuffer; }
+}  // namespace
 
 VolumeRenderer::VolumeRenderer(const Device& device, const RendererSettings& settings)
     : m_device(device), m_settings(settings) {
@@ -14,11 +22,15 @@ VolumeRenderer::VolumeRenderer(const Device& device, const RendererSettings& set
     throw InvalidArgument("sh_lmax must be in [-1, 9] (-1: no indirect light), got " + std::to_string(settings.sh_lmax));
   if (settings.n_dirs == 0 || settings.n_dirs > 4096)
     throw InvalidArgument("indirect-light directions must be in [1, 4096], got " + std::to_string(settings.n_dirs));
+  if (settings.n_env_dirs > 1024)
+    throw InvalidArgument("environment directions n_env_dirs must be in [0, 1024] (0: no environment light), got " +
+                          std::to_string(settings.n_env_dirs));
   m_n_sh = settings.sh_lmax < 0 ? 0 : static_cast<std::uint32_t>((settings.sh_lmax + 1) * (settings.sh_lmax + 1));
   m_defines = {{"N_SAMPLES", std::to_string(settings.n_samples)},
                {"N_SH", std::to_string(m_n_sh)},
                {"N_DIRS", std::to_string(settings.n_dirs)},
-               {"INDIRECT_MODE", settings.closed_form_indirect ? "1" : "0"}};
+               {"INDIRECT_MODE", settings.closed_form_indirect ? "1" : "0"},
+               {"N_ENV", std::to_string(settings.n_env_dirs)}};
   if (m_n_sh) m_sh = nn::create_encoding({{"type", "SphericalHarmonics"}, {"degree", settings.sh_lmax + 1}}, 3);
 }
 
@@ -33,7 +45,19 @@ void VolumeRenderer::view_basis(const Buffer<float>& rays, std::uint32_t n_rays,
 }
 
 void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
-                           const nn::BatchMatrix& sh_basis, const char* what) const {
+                           const nn::BatchMatrix& sh_basis, const EnvironmentSamples* env, const char* what) const {
+  const std::uint32_t n_env = m_settings.n_env_dirs;
+  if (n_env > 0 && !env)
+    throw InvalidArgument(std::string("VolumeRenderer::") + what + ": n_env_dirs = " + std::to_string(n_env) +
+                          " needs the environment samples of this iteration (EnvironmentSamples), got none");
+  if (n_env == 0 && env)
+    throw InvalidArgument(std::string("VolumeRenderer::") + what + ": environment samples given to a renderer "
+                          "without environment light; set RendererSettings::n_env_dirs to their count (" +
+                          std::to_string(env->size()) + ")");
+  if (env && env->size() != n_env)
+    throw InvalidArgument(std::string("VolumeRenderer::") + what + ": the environment samples hold " +
+                          std::to_string(env->size()) + " directions, the renderer was built for n_env_dirs = " +
+                          std::to_string(n_env));
   if (m_settings.closed_form_indirect) {
     if (sh_basis.batch() != n_rays || sh_basis.cols() != m_n_sh)
       throw InvalidArgument(std::string("VolumeRenderer::") + what + ": the closed-form indirect option needs the "
@@ -48,7 +72,7 @@ void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, c
   if (props.batch() != n || props.cols() != prop_cols())
     throw InvalidArgument(std::string("VolumeRenderer::") + what + ": properties are " + std::to_string(props.batch()) +
                           "x" + std::to_string(props.cols()) + ", expected " + std::to_string(n) + "x" +
-                          std::to_string(prop_cols()) + " (rays x samples, 6 + 3 n_sh)");
+                          std::to_string(prop_cols()) + " (rays x samples, 6 + 3 n_sh + n_env_dirs)");
 }
 
 void VolumeRenderer::sample(Buffer<float>& rays, std::uint32_t n_rays, bool jitter, std::uint32_t seed,
@@ -65,14 +89,15 @@ void VolumeRenderer::sample(Buffer<float>& rays, std::uint32_t n_rays, bool jitt
 void VolumeRenderer::forward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t,
                              const Buffer<float>& delta, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
                              const nn::BatchMatrix& sh_basis, nn::BatchMatrix& radiance, Buffer<float>& color,
-                             Buffer<float>& transmittance) const {
-  check(n_rays, props, dirs, sh_basis, "forward");
+                             Buffer<float>& transmittance, const EnvironmentSamples* env) const {
+  check(n_rays, props, dirs, sh_basis, env, "forward");
   if (color.size() < 3 * std::size_t(n_rays) || transmittance.size() < n_rays || radiance.cols() != 3)
     throw InvalidArgument("VolumeRenderer::forward: output buffers too small");
   radiance.resize(props.batch());
   const auto n_tiles = static_cast<std::uint32_t>(props.batch() / nn::kBatchTile);
   m_device.kernel("render.cl", "render_radiance", m_defines)
-      .args(n_tiles, rays, t, props.data(), dirs.data(), sh_basis.data(), radiance.data())
+      .args(n_tiles, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env),
+            radiance.data())
       .launch(n_tiles, 16);
   m_device.kernel("render.cl", "composite", m_defines)
       .args(n_rays, rays, delta, props.data(), radiance.data(), color, transmittance)
@@ -82,8 +107,9 @@ void VolumeRenderer::forward(const Buffer<float>& rays, std::uint32_t n_rays, co
 void VolumeRenderer::backward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t,
                               const Buffer<float>& delta, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
                               const nn::BatchMatrix& sh_basis, const nn::BatchMatrix& radiance, const Buffer<float>& color,
-                              const Buffer<float>& d_color, nn::BatchMatrix& d_radiance, nn::BatchMatrix& d_props) const {
-  check(n_rays, props, dirs, sh_basis, "backward");
+                              const Buffer<float>& d_color, nn::BatchMatrix& d_radiance, nn::BatchMatrix& d_props,
+                              const EnvironmentSamples* env) const {
+  check(n_rays, props, dirs, sh_basis, env, "backward");
   if (d_props.cols() != prop_cols() || d_radiance.cols() != 3 || d_color.size() < 3 * std::size_t(n_rays))
     throw InvalidArgument("VolumeRenderer::backward: gradient buffers have the wrong shape");
   d_props.resize(props.batch());
@@ -93,7 +119,8 @@ void VolumeRenderer::backward(const Buffer<float>& rays, std::uint32_t n_rays, c
       .args(n_rays, rays, delta, props.data(), radiance.data(), color, d_color, d_props.data(), d_radiance.data())
       .launch(n_rays, 16);
   m_device.kernel("render.cl", "render_radiance_backward", m_defines)
-      .args(n_tiles, rays, t, props.data(), dirs.data(), sh_basis.data(), d_radiance.data(), d_props.data())
+      .args(n_tiles, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env),
+            d_radiance.data(), d_props.data())
       .launch(n_tiles, 16);
 }
 

@@ -1,5 +1,6 @@
 // Visibility targets: the transmittance of a density grid from each renderer sample toward its ray's point
-// light (kernels/visibility.cl). The method trains its visibility network against these (DESIGN §4.3).
+// light, or toward each environment direction (kernels/visibility.cl). The method trains its visibility
+// network against these (DESIGN §4.3).
 #pragma once
 
 #include <relit/cl/buffer.hpp>
@@ -21,5 +22,11 @@ struct DensityGrid {
 void march_visibility(const Device& device, const Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t n_samples,
                       const nn::BatchMatrix& positions, const DensityGrid& grid, std::uint32_t steps,
                       nn::BatchMatrix& visibility);
+
+/// out (n_samples x N_e) = exp(-optical depth) from each sample position along each of the N_e unit
+/// directions `dirs` (N_e x 3, e.g. EnvironmentSamples::dirs()) to where the ray leaves [-1, 1]^3, marched in
+/// `steps` midpoint steps: the environment-visibility targets, V(x, w_j) in column j.
+void march_visibility_directions(const Device& device, const nn::BatchMatrix& positions, const nn::BatchMatrix& dirs,
+                                 const DensityGrid& grid, std::uint32_t steps, nn::BatchMatrix& out);
 
 }  // namespace relit::render

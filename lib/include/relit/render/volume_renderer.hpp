@@ -5,9 +5,10 @@
 // them into pixel colours (and, backward, pixel-colour gradients into property gradients).
 //
 //   sample():   rays → t_near/t_far, stratified sample distances t, deltas, sample positions (BatchMatrix x 3)
-//   forward():  properties → per-sample radiance a ⊙ (S_dir + S_ind) → composited colour and transmittance
-//   backward(): dL/dcolour → dL/dproperties (sigma, albedo, g, SH coefficients; zero for visibility, whose
-//               network the render loss must not reach)
+//   forward():  properties → per-sample radiance a ⊙ (S_dir + S_env + S_ind) → composited colour and
+//               transmittance
+//   backward(): dL/dcolour → dL/dproperties (sigma, albedo, g, SH coefficients; zero for every visibility
+//               column, whose network the render loss must not reach)
 //
 // Ray records are kRayFloats floats: origin, t_near, direction (unit), t_far, light position, 0, light RGB
 // intensity [W/sr], 0, background radiance, 0. Sample s = ray * n_samples + i.
@@ -25,8 +26,14 @@ namespace relit::render {
 
 constexpr std::uint32_t kRayFloats = 20;
 
-/// Columns of the per-sample property matrix.
+class EnvironmentSamples;
+
+/// Columns of the per-sample property matrix: sigma, albedo (3), g, V toward the point light, the SH
+/// coefficients channel-major (3 n_sh), then V toward each of the N_e environment directions.
 enum PropColumn : std::uint32_t { kSigma = 0, kAlbedo = 1, kG = 4, kVisibility = 5, kSH = 6 };
+
+/// The first environment-visibility column, V(x, w_0): column kSH + 3 n_sh; V(x, w_j) is this + j.
+constexpr std::uint32_t env_visibility_column(std::uint32_t n_sh) { return kSH + 3 * n_sh; }
 
 struct RendererSettings {
   std::uint32_t n_samples = 64;  ///< samples per ray, a multiple of 16
@@ -36,6 +43,10 @@ struct RendererSettings {
   /// clamp is inactive; an ablation and a fast preview). forward()/backward() then take the view basis
   /// (view_basis()) in place of the directions' basis, and ignore `dirs`.
   bool closed_form_indirect = false;
+  /// N_e, importance-sampled environment directions of S_env (DESIGN §4.2 uses 32); 0: no environment
+  /// light. With N_e > 0 the property matrix ends in N_e visibility columns and forward()/backward() need
+  /// the EnvironmentSamples of the iteration.
+  std::uint32_t n_env_dirs = 0;
 };
 
 class VolumeRenderer {
@@ -45,8 +56,10 @@ class VolumeRenderer {
   const RendererSettings& settings() const { return m_settings; }
   /// (sh_lmax + 1)^2, or 0 without indirect light.
   std::uint32_t n_sh() const { return m_n_sh; }
-  /// Columns of the property matrix: 6 + 3 n_sh.
-  std::uint32_t prop_cols() const { return 6 + 3 * m_n_sh; }
+  /// Columns of the property matrix: 6 + 3 n_sh + n_env_dirs.
+  std::uint32_t prop_cols() const { return 6 + 3 * m_n_sh + m_settings.n_env_dirs; }
+  /// The column of V(x, w_0) toward the first environment direction (= prop_cols() without environment).
+  std::uint32_t env_visibility_col() const { return env_visibility_column(m_n_sh); }
 
   /// Intersects the rays with [-1, 1]^3 (writing t_near/t_far into the records) and places the samples.
   /// `jitter` draws each sample uniformly in its stratum from (seed, ray, sample); otherwise stratum centres.
@@ -55,23 +68,26 @@ class VolumeRenderer {
 
   /// `dirs`: the n_dirs unit directions of the indirect sum (n_dirs x 3); `sh_basis`: Y_j(dir_k) (n_dirs x
   /// n_sh). IndirectBasis draws both on the device. With closed_form_indirect, `sh_basis` is view_basis()'s
-  /// n_rays x n_sh matrix instead.
+  /// n_rays x n_sh matrix instead. `env`: the environment directions and weights of this iteration
+  /// (EnvironmentSamples::draw()), required when n_env_dirs > 0 and null otherwise.
   void forward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t, const Buffer<float>& delta,
                const nn::BatchMatrix& props, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis,
-               nn::BatchMatrix& radiance, Buffer<float>& color, Buffer<float>& transmittance) const;
+               nn::BatchMatrix& radiance, Buffer<float>& color, Buffer<float>& transmittance,
+               const EnvironmentSamples* env = nullptr) const;
 
   /// Y_j(-w_o) for every ray (n_rays x n_sh), the basis the closed-form indirect option needs.
   void view_basis(const Buffer<float>& rays, std::uint32_t n_rays, nn::BatchMatrix& out) const;
 
-  /// Uses `radiance` and `color` from the forward call. Overwrites every column of `d_props`.
+  /// Uses `radiance` and `color` from the forward call and the same `env`. Overwrites every column of
+  /// `d_props`; the visibility columns (point light and environment) get zero.
   void backward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t, const Buffer<float>& delta,
                 const nn::BatchMatrix& props, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis,
                 const nn::BatchMatrix& radiance, const Buffer<float>& color, const Buffer<float>& d_color,
-                nn::BatchMatrix& d_radiance, nn::BatchMatrix& d_props) const;
+                nn::BatchMatrix& d_radiance, nn::BatchMatrix& d_props, const EnvironmentSamples* env = nullptr) const;
 
  private:
   void check(std::uint32_t n_rays, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
-             const nn::BatchMatrix& sh_basis, const char* what) const;
+             const nn::BatchMatrix& sh_basis, const EnvironmentSamples* env, const char* what) const;
   Device m_device;
   RendererSettings m_settings;
   std::uint32_t m_n_sh;
