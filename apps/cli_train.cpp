@@ -102,7 +102,9 @@ std::vector<float> triple(const std::vector<float>& v, const char* what) {
 }
 
 struct RenderOptions {
-  std::string run, out, device, view, visibility;
+  std::string run, out, device, view, visibility, environment;
+  float env_scale = 1.0f;
+  bool env_visible = false;
   std::vector<float> eye{0, -4, 1}, target{0, 0, 0}, light{0, -3, 3}, intensity{600};
   int resolution = 128;
   float fov = 0.8f;
@@ -113,6 +115,7 @@ int run_render(const RenderOptions& o) {
   const auto model = method::load_model(device, (fs::path(o.run) / "checkpoint.relit").string());
   Camera camera;
   PointLight light;
+  std::shared_ptr<const EnvironmentLight> environment;  // --view of 'env+point' data: the dataset's
   if (!o.view.empty()) {
     // DATASET:SPLIT:INDEX — the camera and light of a dataset view.
     const auto a = o.view.rfind(':'), b = o.view.rfind(':', a - 1);
@@ -126,6 +129,7 @@ int run_render(const RenderOptions& o) {
       throw InvalidArgument("--view: no view " + std::to_string(index) + " in split '" + split + "'");
     camera = it->second[index].camera;
     light = it->second[index].light;
+    if (model->settings().environment.enabled) environment = method::dataset_environment(o.view.substr(0, b));
   } else {
     const auto e = triple(o.eye, "--eye"), t = triple(o.target, "--target");
     camera = Camera::look_at({e[0], e[1], e[2]}, {t[0], t[1], t[2]}, {0, 0, 1}, o.fov, o.resolution, o.resolution);
@@ -136,9 +140,16 @@ int run_render(const RenderOptions& o) {
   }
   const auto i = triple(o.intensity, "--intensity");
   if (o.view.empty() || o.intensity != std::vector<float>{600}) light.intensity = {i[0], i[1], i[2]};
+  if (o.environment == "none") {
+    environment.reset();
+  } else if (!o.environment.empty()) {
+    environment = std::make_shared<const EnvironmentLight>(read_image(o.environment), o.env_scale, o.env_visible,
+                                                           o.environment);
+  }
   ProgressBar bar("render");
   method::RenderSettings rs;
   rs.visibility = o.visibility;
+  rs.environment = environment.get();
   const Image img = method::render_image(*model, camera, light, rs, [&](const Progress& p) { return bar(p); });
   bar.finish();
   write_image(o.out, img);
@@ -284,6 +295,11 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--intensity", o->intensity, "light intensity in W/sr: one value (white) or r g b")->expected(1, 3);
   cmd->add_option("--visibility", o->visibility, "network or march (default: the model's setting)")
       ->check(CLI::IsMember({"network", "march"}));
+  cmd->add_option("--environment", o->environment,
+                  "light the scene with this lat-long map (.exr/.hdr) as well, or 'none' (default: the dataset's "
+                  "map for --view of 'env+point' data); the model must have been trained on 'env+point' data");
+  cmd->add_option("--env-scale", o->env_scale, "radiance scale of --environment")->capture_default_str();
+  cmd->add_flag("--env-visible", o->env_visible, "camera rays that miss the medium see --environment");
   cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
   cmd->final_callback([o] {
     if (const int code = run_render(*o)) throw CLI::RuntimeError(code);

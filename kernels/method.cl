@@ -80,3 +80,32 @@ __kernel void step_guard(__global const float* restrict a, __global const float*
   guard[0] = total;
   if (!isfinite(total)) skipped[0] += 1;
 }
+
+// The visibility net's queries toward the N_e environment directions, sample-major: row r = s N_e + j of `out`
+// (6 columns, rows from `row0` on) = [net_pos(s), w_j] for samples s < n. dirs: N_e x 3 tiled, unit.
+__kernel void env_visibility_inputs(const uint n, const uint n_env, __global const float* restrict net_pos,
+                                    __global const float* restrict dirs, __global float* restrict out, const uint row0) {
+  const uint r = get_global_id(0);
+  if (r >= n * n_env) return;
+  const uint s = r / n_env, j = r % n_env;
+  const uint o = row0 + r;
+  for (uint c = 0; c < 3; ++c) {
+    out[TILED_AT(6, o, c)] = net_pos[TILED_AT(3, s, c)];
+    out[TILED_AT(6, o, 3 + c)] = dirs[TILED_AT(3, j, c)];
+  }
+}
+
+// Sample-major rows (a one-column tiled matrix is flat: row r at r) <-> N_e columns of a tiled matrix:
+// dst[s, col + j] = src[s N_e + j]  (rows_to_columns)   and   dst[row0 + s N_e + j] = src[s, j]  (columns_to_rows).
+__kernel void env_rows_to_columns(const uint n, const uint n_env, __global const float* restrict src,
+                                  __global float* restrict dst, const uint dst_cols, const uint col) {
+  const uint r = get_global_id(0);
+  if (r >= n * n_env) return;
+  dst[TILED_AT(dst_cols, r / n_env, col + r % n_env)] = src[r];
+}
+__kernel void env_columns_to_rows(const uint n, const uint n_env, __global const float* restrict src,
+                                  __global float* restrict dst, const uint row0) {
+  const uint r = get_global_id(0);
+  if (r >= n * n_env) return;
+  dst[row0 + r] = src[TILED_AT(n_env, r / n_env, r % n_env)];
+}

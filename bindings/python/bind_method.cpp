@@ -49,11 +49,16 @@ PointLight light_from(const py::object& light) {
 }
 
 py::array_t<float> render(const method::Ours& model, const Camera& camera, const py::object& light,
-                          const std::string& visibility, std::uint32_t seed) {
+                          const std::string& visibility, std::uint32_t seed, const py::object& environment) {
   const PointLight l = light_from(light);
   method::RenderSettings rs;
   rs.visibility = visibility;
   rs.seed = seed;
+  if (!environment.is_none()) {
+    if (!py::isinstance<EnvironmentLight>(environment))
+      throw InvalidArgument("environment must be a relit.EnvironmentLight or None");
+    rs.environment = environment.cast<const EnvironmentLight*>();
+  }
   Image img;
   {
     py::gil_scoped_release release;
@@ -67,6 +72,29 @@ py::array_t<float> render(const method::Ours& model, const Camera& camera, const
 }  // namespace
 
 void bind_method(py::module_& m) {
+  py::class_<EnvironmentLight, std::shared_ptr<EnvironmentLight>>(
+      m, "EnvironmentLight", "A lat-long HDR environment map (z up) lighting the scene from infinity.")
+      .def(py::init([](const std::string& file, float scale, bool visible) {
+             return std::make_shared<EnvironmentLight>(read_image(file), scale, visible, file);
+           }),
+           py::arg("file"), py::arg("scale") = 1.0f, py::arg("visible") = false,
+           "Loads a lat-long map (.exr/.hdr); radiance = scale x texel; visible: camera rays that miss see it.")
+      .def_static(
+          "from_dataset",
+          [](const std::string& dataset) {
+            auto env = method::dataset_environment(dataset);
+            if (!env) throw InvalidArgument("dataset " + dataset + " has no environment light ('point' lighting)");
+            return std::make_shared<EnvironmentLight>(*env);
+          },
+          py::arg("dataset"), "The environment light of an 'env+point' dataset folder.")
+      .def_property_readonly("scale", &EnvironmentLight::scale)
+      .def_property_readonly("visible", &EnvironmentLight::visible)
+      .def_property_readonly("file", &EnvironmentLight::file)
+      .def("__repr__", [](const EnvironmentLight& e) {
+        return "EnvironmentLight(file='" + e.file() + "', scale=" + std::to_string(e.scale()) +
+               ", visible=" + (e.visible() ? "True" : "False") + ")";
+      });
+
   m.def("presets", &method::preset_names, "Names of the built-in run configs (\"fast\", \"paper\").");
   m.def(
       "preset", [](const std::string& name) { return json_to_python(method::preset(name)); }, py::arg("name"),
@@ -94,8 +122,12 @@ void bind_method(py::module_& m) {
           [](const std::string& path, const py::object& device) { return method::load_model(device_arg(device), path); },
           py::arg("path"), py::arg("device") = py::none(), "Loads the model of a checkpoint (checkpoint.relit).")
       .def("render", &render, py::arg("camera"), py::arg("light"), py::arg("visibility") = "", py::arg("seed") = 0,
+           py::arg("environment") = py::none(),
            "Renders camera's image under the point light: float32 (height, width, 3), linear RGB. visibility:\n"
-           "\"network\" or \"march\" (default: the model's setting).")
+           "\"network\" or \"march\" (default: the model's setting). environment: a relit.EnvironmentLight\n"
+           "lighting the scene as well (models trained on 'env+point' data), e.g. EnvironmentLight.from_dataset(path).")
+      .def_property_readonly("has_environment", [](const method::Ours& o) { return o.settings().environment.enabled; },
+                             "whether the model was trained with an environment light ('env+point' data)")
       .def_property_readonly("n_params", &method::Ours::n_params)
       .def_property_readonly("n_visibility_params", &method::Ours::n_vis_params)
       .def_property_readonly("config", [](const method::Ours& o) { return json_to_python(o.hyperparams()); });

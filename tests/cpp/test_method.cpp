@@ -38,68 +38,103 @@ struct Scene1 {
   PointLight light{{2.0f, -2.0f, 3.0f}, {500.0f, 400.0f, 300.0f}};
 };
 
+Json tiny_env_model(const std::string& sh = "1") {
+  Json m = tiny_model(sh);
+  m["environment"] = {{"enabled", true},
+                      {"n_dirs", 8},
+                      {"n_dirs_training", 4},
+                      {"visibility_fraction", 0.5},
+                      {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 16}, {"n_hidden_layers", 1}}}};
+  return m;
+}
+
+// A smooth, non-uniform environment (a procedural sky at low resolution), visible to the camera.
+EnvironmentLight test_sky() { return EnvironmentLight::sky(16, 8, 2, 0.5f, true); }
+
 // sum_j w_j colour_j over the rays of the tiny image, in double.
 double weighted_colour(method::Ours& model, method::OursPass& pass, Buffer<float>& rays, std::uint32_t n,
-                       render::IndirectBasis& basis, const std::vector<float>& w) {
-  model.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis());
+                       render::IndirectBasis& basis, const std::vector<float>& w,
+                       const render::EnvironmentSamples* env = nullptr) {
+  model.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis(), false, nullptr, env);
   const auto c = pass.color.read();
   double sum = 0;
   for (std::size_t j = 0; j < w.size(); ++j) sum += double(w[j]) * c[j];
   return sum;
 }
 
+// d(sum_j w_j colour_j)/dθ from backward() against central differences, on the 12 largest gradients and 12
+// random parameters (`from`: the first parameter that may be picked at random).
+void check_gradients(method::Ours& model, const render::EnvironmentSamples* env, std::size_t from = 0) {
+  const Device& dev = model.device();
+  Scene1 sc;
+  const std::uint32_t n = 16;
+  Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
+  render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
+  if (env) env->fill_background(rays, n);
+  render::IndirectBasis basis(dev, 8, model.settings().renderer.sh_lmax);
+  basis.draw(1, 0);
+  method::OursPass pass;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<float> w(3 * n);
+  for (auto& x : w) x = u(rng);
+  weighted_colour(model, pass, rays, n, basis, w, env);
+  Buffer<float> d_color(dev, w);
+  model.backward(pass, rays, basis.dirs(), basis.basis(), d_color, nullptr, env);
+  const auto grads = model.grads().read();
+  auto params = model.params().read();
+  ASSERT_EQ(grads.size(), params.size());
+  std::vector<std::size_t> order(params.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::partial_sort(order.begin(), order.begin() + 12, order.end(),
+                    [&](std::size_t a, std::size_t b) { return std::fabs(grads[a]) > std::fabs(grads[b]); });
+  std::vector<std::size_t> picks(order.begin(), order.begin() + 12);
+  for (int k = 0; k < 12; ++k) picks.push_back(from + rng() % (params.size() - from));
+  double max_g = 0;
+  for (float g : grads) max_g = std::max(max_g, double(std::fabs(g)));
+  ASSERT_GT(max_g, 0.0);
+  int checked = 0;
+  for (std::size_t i : picks) {
+    const float p0 = params[i];
+    const float h = 1e-2f * std::max(1.0f, std::fabs(p0));
+    params[i] = p0 + h;
+    model.params().write(params);
+    const double fp = weighted_colour(model, pass, rays, n, basis, w, env);
+    params[i] = p0 - h;
+    model.params().write(params);
+    const double fm = weighted_colour(model, pass, rays, n, basis, w, env);
+    params[i] = p0;
+    model.params().write(params);
+    const double fd = (fp - fm) / (2.0 * h);
+    EXPECT_NEAR(grads[i], fd, 2e-2 * max_g + 2e-2 * std::fabs(fd)) << "parameter " << i;
+    ++checked;
+  }
+  EXPECT_EQ(checked, 24);
+}
+
 TEST(Method, RenderGradientMatchesFiniteDifferencesEndToEnd) {
   const Device dev = test::test_device();
-  for (const std::string sh : {"none", "1"}) {
+  for (const std::string sh : {"none", "1", "1 closed form"}) {
     SCOPED_TRACE("sh " + sh);
-    method::Ours model(dev, tiny_model(sh));
+    Json config = tiny_model(sh.substr(0, sh.find(' ')));
+    config["renderer"]["closed_form_indirect"] = sh.find("closed") != std::string::npos;
+    method::Ours model(dev, config);
     model.initialize(11);
-    // Denser start so that the medium is not transparent, and light at the working intensity.
-    Scene1 sc;
-    const std::uint32_t n = 16;
-    Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
-    render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
-    render::IndirectBasis basis(dev, 8, model.settings().renderer.sh_lmax);
-    basis.draw(1, 0);
-    method::OursPass pass;
-    std::mt19937 rng(5);
-    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-    std::vector<float> w(3 * n);
-    for (auto& x : w) x = u(rng);
-    weighted_colour(model, pass, rays, n, basis, w);
-    Buffer<float> d_color(dev, w);
-    model.backward(pass, rays, basis.dirs(), basis.basis(), d_color);
-    const auto grads = model.grads().read();
-    auto params = model.params().read();
-    ASSERT_EQ(grads.size(), params.size());
-    // Check the largest-gradient parameters and a random sample of the rest.
-    std::vector<std::size_t> order(params.size());
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::partial_sort(order.begin(), order.begin() + 12, order.end(),
-                      [&](std::size_t a, std::size_t b) { return std::fabs(grads[a]) > std::fabs(grads[b]); });
-    std::vector<std::size_t> picks(order.begin(), order.begin() + 12);
-    for (int k = 0; k < 12; ++k) picks.push_back(rng() % params.size());
-    double max_g = 0;
-    for (float g : grads) max_g = std::max(max_g, double(std::fabs(g)));
-    ASSERT_GT(max_g, 0.0);
-    int checked = 0;
-    for (std::size_t i : picks) {
-      const float p0 = params[i];
-      const float h = 1e-2f * std::max(1.0f, std::fabs(p0));
-      params[i] = p0 + h;
-      model.params().write(params);
-      const double fp = weighted_colour(model, pass, rays, n, basis, w);
-      params[i] = p0 - h;
-      model.params().write(params);
-      const double fm = weighted_colour(model, pass, rays, n, basis, w);
-      params[i] = p0;
-      model.params().write(params);
-      const double fd = (fp - fm) / (2.0 * h);
-      EXPECT_NEAR(grads[i], fd, 2e-2 * max_g + 2e-2 * std::fabs(fd)) << "parameter " << i;
-      ++checked;
-    }
-    EXPECT_EQ(checked, 24);
+    check_gradients(model, nullptr);
   }
+}
+
+TEST(Method, EnvironmentRenderGradientMatchesFiniteDifferences) {
+  // With an environment light: S_env through the N_e visibility columns, and c_env's head (the last block of
+  // θ, where the random picks are drawn from) through the SH columns it adds to.
+  const Device dev = test::test_device();
+  method::Ours model(dev, tiny_env_model());
+  model.initialize(11);
+  ASSERT_NE(model.environment_network(), nullptr);
+  const EnvironmentLight sky = test_sky();
+  render::EnvironmentSamples env(dev, sky, 4);
+  env.draw(1, 0);
+  check_gradients(model, &env, model.n_params() - model.environment_network()->n_params());
 }
 
 TEST(Method, GradientsAreIsolatedBothWays) {
@@ -129,6 +164,118 @@ TEST(Method, GradientsAreIsolatedBothWays) {
   for (float g : model.vis_grads().read()) norm += std::fabs(g);
   EXPECT_GT(norm, 0.0);
   EXPECT_TRUE(std::isfinite(value.read()[0]));
+}
+
+TEST(Method, EnvironmentVisibilityColumnsAndTargetsComeFromTheirDirections) {
+  // forward(): column env_col + j of sample s is V_ψ([x_s, w_j]) (network) or the march toward w_j (march);
+  // visibility_step(): rows m + s N_e + j of the subset are [x_s, w_j] with the march toward w_j as target.
+  const Device dev = test::test_device();
+  method::Ours model(dev, tiny_env_model());
+  model.initialize(3);
+  model.refresh_density_grid();
+  Scene1 sc;
+  const std::uint32_t n = 16, n_env = 4, spr = 16;
+  Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
+  render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
+  render::IndirectBasis basis(dev, 8, 1);
+  basis.draw(1, 0);
+  const EnvironmentLight sky = test_sky();
+  render::EnvironmentSamples env(dev, sky, n_env);
+  env.draw(4, 0);
+  const auto dirs = env.dirs().download_row_major();
+  const std::uint32_t col = model.renderer(n_env).env_visibility_col();
+  method::OursPass pass;
+  for (const bool march : {false, true}) {
+    SCOPED_TRACE(march ? "march" : "network");
+    model.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis(), march, nullptr, &env);
+    const auto props = pass.props.download_row_major();
+    const auto pos = pass.positions.download_row_major();
+    const std::uint32_t cols = pass.props.cols();
+    ASSERT_EQ(cols, col + n_env);
+    // The expected values: V_ψ on hand-built rows, or the directional march.
+    const std::uint32_t ns = n * spr;
+    std::vector<float> expect(std::size_t(ns) * n_env);
+    if (march) {
+      nn::BatchMatrix out(dev, ns, n_env);
+      render::march_visibility_directions(dev, pass.positions, env.dirs(), model.density_grid(), 16, out);
+      expect = out.download_row_major();
+    } else {
+      std::vector<float> rows;
+      for (std::uint32_t s = 0; s < ns; ++s)
+        for (std::uint32_t j = 0; j < n_env; ++j) {
+          for (int c = 0; c < 3; ++c) rows.push_back(0.5f * pos[s * 3 + c] + 0.5f);
+          for (int c = 0; c < 3; ++c) rows.push_back(dirs[j * 3 + c]);
+        }
+      nn::BatchMatrix in(dev, ns * n_env, 6), out(dev, ns * n_env, 1);
+      in.upload_row_major(rows);
+      model.visibility_network().inference(dev, {&model.vis_params(), 0}, in, out);
+      expect = out.download_row_major();
+    }
+    for (std::uint32_t s = 0; s < ns; ++s)
+      for (std::uint32_t j = 0; j < n_env; ++j)
+        ASSERT_NEAR(props[std::size_t(s) * cols + col + j], expect[std::size_t(s) * n_env + j], 1e-5f)
+            << "sample " << s << " direction " << j;
+  }
+  auto loss = nn::create_loss({{"type", "L2"}});
+  Buffer<float> value(dev, 1);
+  model.grads().fill(-7.0f);
+  model.visibility_step(pass, rays, *loss, value, 1.0f, nullptr, &env);
+  for (float g : model.grads().read()) ASSERT_EQ(g, -7.0f);  // θ untouched
+  // visibility_fraction 0.25 (default) and 0.5 of 16 rays: 4 and 8 rays of 16 samples.
+  const std::uint32_t m = 4 * spr, m_env = 8 * spr;
+  ASSERT_EQ(pass.vis_in_sub.batch(), m + m_env * n_env);
+  const auto in = pass.vis_in_sub.download_row_major();
+  const auto target = pass.vis_target.download_row_major();
+  const auto pos = pass.positions.download_row_major();
+  nn::BatchMatrix sub(dev, m_env, 3), marched(dev, m_env, n_env);
+  sub.upload_row_major(std::vector<float>(pos.begin(), pos.begin() + std::size_t(m_env) * 3));
+  render::march_visibility_directions(dev, sub, env.dirs(), model.density_grid(), 16, marched);
+  const auto mv = marched.download_row_major();
+  for (std::uint32_t s = 0; s < m_env; ++s)
+    for (std::uint32_t j = 0; j < n_env; ++j) {
+      const std::size_t r = m + std::size_t(s) * n_env + j;
+      ASSERT_NEAR(target[r], mv[std::size_t(s) * n_env + j], 1e-6f) << "row " << r;
+      for (int c = 0; c < 3; ++c) {
+        ASSERT_NEAR(in[r * 6 + c], 0.5f * pos[s * 3 + c] + 0.5f, 1e-6f) << "row " << r;
+        ASSERT_NEAR(in[r * 6 + 3 + c], dirs[j * 3 + c], 1e-6f) << "row " << r;
+      }
+    }
+  EXPECT_TRUE(std::isfinite(value.read()[0]));
+  double norm = 0;
+  for (float g : model.vis_grads().read()) norm += std::fabs(g);
+  EXPECT_GT(norm, 0.0);
+}
+
+TEST(Method, EnvironmentLightAddsAConstantToTheLinearPointLightTerm) {
+  // Under an environment, C(I) = C_env + I B: the point light's part is linear in I (SH head scaled by I) and
+  // the environment's part (S_env, c_env, background) does not depend on I, so C(3I) - C(2I) = C(2I) - C(I).
+  // Exactly so with the closed-form indirect sum; the K-direction sum clamps c = I h + c_env as a whole.
+  const Device dev = test::test_device();
+  Json config = tiny_env_model("2");
+  config["renderer"]["closed_form_indirect"] = true;
+  method::Ours model(dev, config);
+  model.initialize(4);
+  Scene1 sc;
+  const EnvironmentLight sky = test_sky();
+  method::RenderSettings rs;
+  rs.environment = &sky;
+  std::vector<Image> img;
+  for (float k : {1.0f, 2.0f, 3.0f}) {
+    PointLight l = sc.light;
+    for (auto& i : l.intensity) i *= k;
+    img.push_back(method::render_image(model, sc.camera, l, rs));
+  }
+  const Image point_only = method::render_image(model, sc.camera, sc.light);
+  double env_part = 0;
+  for (std::size_t p = 0; p < img[0].pixels.size(); ++p) {
+    const float d1 = img[1].pixels[p] - img[0].pixels[p], d2 = img[2].pixels[p] - img[1].pixels[p];
+    EXPECT_NEAR(d2, d1, 1e-4f * (1.0f + std::fabs(img[2].pixels[p])));
+    env_part += std::fabs(img[0].pixels[p] - point_only.pixels[p]);
+  }
+  EXPECT_GT(env_part, 0.0);  // the environment adds light
+  // A model trained without an environment refuses one.
+  method::Ours plain(dev, tiny_model());
+  EXPECT_THROW(method::render_image(plain, sc.camera, sc.light, rs), InvalidArgument);
 }
 
 TEST(Method, RadianceIsLinearInTheLightIntensity) {
@@ -277,6 +424,73 @@ TEST_F(MethodTrainer, TrainingLowersTheLoss) {
   EXPECT_LT(s.loss, 0.5 * first);
   EXPECT_EQ(s.skipped, 0u);
   EXPECT_EQ(s.step, 81u);
+}
+
+TEST_F(MethodTrainer, EnvPointDatasetsTrainTheEnvironmentPartsAndResume) {
+  // An 'env+point' dataset: relit turns the model's environment on, trains S_env and c_env, resumes exactly,
+  // and evaluates its views under the dataset's environment; a config that says otherwise is an error.
+  const Device dev = test::test_device();
+  test::TempDir dir("method-env");
+  const std::string ds = (dir.path() / "ds").string();
+  DatasetSettings d;
+  d.resolution = 12;
+  d.train = 4;
+  d.val = 1;
+  d.test = 2;
+  d.spp = 2;
+  d.seed = 5;
+  d.lighting = "env+point";
+  d.env_visible = true;
+  generate_dataset(dev, Scene::from_json(Scene::builtin_json("cloud", 1, 16)), ds, d);
+  Json cfg = config();
+  cfg["training"]["batch_rays"] = 128;
+  method::Trainer straight(dev, ds, cfg);
+  EXPECT_EQ(straight.config()["model"]["environment"]["enabled"], true);
+  ASSERT_NE(straight.model().environment_network(), nullptr);
+  const auto env_before = straight.model().params().read();
+  straight.run(6);
+  // c_env's parameters (the last block of θ) moved.
+  const std::size_t env_params = straight.model().environment_network()->n_params();
+  const auto after = straight.model().params().read();
+  double moved = 0;
+  for (std::size_t i = after.size() - env_params; i < after.size(); ++i) moved += std::fabs(after[i] - env_before[i]);
+  EXPECT_GT(moved, 0.0);
+  EXPECT_TRUE(std::isfinite(straight.stats().loss));
+  EXPECT_TRUE(std::isfinite(straight.stats().visibility_loss));
+
+  test::TempDir out("run-env");
+  method::Trainer first(dev, ds, cfg);
+  first.set_output(out.path().string());
+  first.run(3);
+  method::Trainer resumed(dev, ds, cfg);
+  resumed.load_checkpoint((out.path() / "checkpoint.relit").string());
+  resumed.run(3);
+  EXPECT_EQ(resumed.model().params().read(), straight.model().params().read());
+  EXPECT_EQ(resumed.model().vis_params().read(), straight.model().vis_params().read());
+
+  // Evaluation renders the test views under the environment (the split carries it).
+  const auto split = method::load_split(ds, "test");
+  ASSERT_NE(split.environment, nullptr);
+  EXPECT_TRUE(split.environment->visible());
+  method::RenderSettings lit, dark;
+  lit.environment = split.environment.get();
+  const Image a = method::render_image(straight.model(), split.cameras[0], split.lights[0], lit);
+  const Image b = method::render_image(straight.model(), split.cameras[0], split.lights[0], dark);
+  EXPECT_NE(a.pixels, b.pixels);
+  const auto views = method::evaluate(straight.model(), ds, (out.path() / "eval").string());
+  ASSERT_EQ(views.size(), 2u);
+  EXPECT_TRUE(std::isfinite(views[0].metrics.psnr));
+
+  Json wrong = cfg;
+  wrong["model"]["environment"] = {{"enabled", false}};
+  try {
+    method::Trainer t(dev, ds, wrong);
+    ADD_FAILURE() << "expected a ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("/model/environment/enabled"), std::string::npos) << e.what();
+  }
+  wrong["model"]["environment"]["enabled"] = true;
+  EXPECT_THROW(method::Trainer(dev, dataset(), wrong), ConfigError);  // a 'point' dataset has no environment
 }
 
 TEST_F(MethodTrainer, NonFiniteStepsAreSkippedAndCounted) {

@@ -98,3 +98,40 @@ def test_cli_train_resume_and_render(dataset, tmp_path):
     r = run_python(["-m", "relit", "render", run, "--eye", "0", "-4", "1", "--resolution", "16", "--light", "1", "-3",
                     "2", "--intensity", "300", "200", "100", "--out", str(tmp_path / "x.exr")])
     assert r.returncode == 0, r.stderr
+
+
+def test_env_point_training_and_rendering_under_the_environment(dataset, device, tmp_path):
+    ds = str(tmp_path / "env")
+    scene = relit.Scene.builtin("cloud", seed=1, resolution=16)
+    relit.generate_dataset(scene, ds, lighting="env+point", resolution=12, train=4, val=1, test=1, spp=2, seed=4,
+                           device=device)
+    trainer = relit.Trainer(ds, config=CONFIG, device=device)
+    assert trainer.config["model"]["environment"]["enabled"] is True
+    stats = list(trainer.run(4, every=2))
+    assert all(math.isfinite(s.loss) for s in stats)
+    model = trainer.model
+    assert model.has_environment
+    env = relit.EnvironmentLight.from_dataset(ds)
+    assert env.file.endswith("environment.exr") and not env.visible
+    cam = relit.Camera.look_at((0, -4, 0.5), width=8, height=8)
+    light = relit.PointLight((2, -3, 2), 300)
+    lit = model.render(cam, light, environment=env)
+    dark = model.render(cam, light)
+    assert lit.shape == dark.shape == (8, 8, 3) and np.isfinite(lit).all()
+    assert (lit - dark).sum() > 0  # the environment adds light
+    with pytest.raises(relit.Error, match="no environment"):
+        relit.EnvironmentLight.from_dataset(dataset)  # 'point' lighting
+    # The CLI renders a dataset view under the dataset's environment (and without it on request).
+    run = str(tmp_path / "run")
+    r = run_python(["-m", "relit", "train", ds, "--config", str(_write(tmp_path, CONFIG)), "--out", run, "--steps", "2"])
+    assert r.returncode == 0, r.stderr
+    for extra in ([], ["--environment", "none"]):
+        out = str(tmp_path / ("view%d.exr" % len(extra)))
+        r = run_python(["-m", "relit", "render", run, "--view", ds + ":test:0", "--out", out] + extra)
+        assert r.returncode == 0, r.stderr
+
+
+def _write(tmp_path, config):
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    return path

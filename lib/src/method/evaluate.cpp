@@ -27,6 +27,7 @@ std::vector<report::ViewResult> evaluate(const Ours& model, const std::string& d
       v.width = static_cast<std::uint32_t>(split.width);
       v.height = static_cast<std::uint32_t>(split.height);
       rs.seed = static_cast<std::uint32_t>(i);
+      rs.environment = split.environment.get();
       Image img = render_image(model, split.cameras[i], split.lights[i], rs);
       v.prediction = std::move(img.pixels);
       v.reference = split.image(i);

@@ -23,6 +23,9 @@ Json default_indirect() {
   return {{"light_encoding", {{"type", "Frequency"}, {"n_frequencies", 4}, {"include_input", true}}},
           {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}}};
 }
+Json default_environment() {
+  return {{"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 1}}}};
+}
 Json default_visibility() {
   return {{"position_encoding", {{"type", "HashGrid"}, {"n_levels", 8}, {"n_features_per_level", 2},
                                  {"log2_hashmap_size", 15}, {"base_resolution", 8}, {"per_level_scale", 1.5}}},
@@ -154,6 +157,24 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   }
   s.inference_visibility = r.choice("inference_visibility", "network", {"network", "march"},
                                     "visibility when rendering: the network (as the paper) or a density-grid march");
+  Json env_network, env_resolved;
+  {
+    SubConfig sub(r, "environment", default_environment(),
+                  "the environment light of 'env+point' data: S_env and the position-only SH head c_env", docs);
+    auto& e = s.environment;
+    e.enabled = sub.reader.boolean("enabled", false,
+                                   "the model has an environment light (relit train sets it from the dataset)");
+    e.n_dirs = sub.reader.uint("n_dirs", 32, 1, 1024, "N_e, importance-sampled environment directions when rendering");
+    e.n_dirs_training = sub.reader.uint("n_dirs_training", 4, 1, 1024,
+                                        "N_e of a training step (drawn anew every step; each costs a visibility query "
+                                        "per sample)");
+    e.visibility_fraction = sub.reader.number("visibility_fraction", 0.0625f, 1e-3f, 1.0f,
+                                              "share of each batch's rays whose samples train the visibility net "
+                                              "toward the environment directions");
+    env_network = sub.component("network", default_environment(), "the c_env head's MLP on the features (output: none)");
+    sub.finish();
+    env_resolved = sub.reader.resolved();
+  }
 
   const std::uint32_t n_sh = s.renderer.sh_lmax < 0 ? 0 : std::uint32_t((s.renderer.sh_lmax + 1) * (s.renderer.sh_lmax + 1));
   // Property network: [0,1]^3 position → sigma, albedo, g, features.
@@ -194,6 +215,19 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     r.set_resolved("indirect", res);
   } else {
     r.sub("indirect", default_indirect(), "object", "indirect SH head h_θ: {light_encoding, network}");
+  }
+  // Environment SH head: features → 3 n_sh coefficients of the environment's indirect light (not scaled by I).
+  {
+    const std::string ptr = r.pointer("environment");
+    Json res = env_resolved;
+    if (s.environment.enabled && n_sh > 0) {
+      const Json net = with_heads(env_network, ptr + "/network", Json::array({{{"n_dims", 3 * n_sh}, {"activation", "None"}}}));
+      auto e = nn::create_encoding({{"type", "Identity"}}, s.n_features, ptr);
+      auto n = nn::create_network(net, e->n_output_dims(), 3 * n_sh, ptr + "/network");
+      m_environment = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
+      res["network"] = strip_heads(m_environment->network().hyperparams());
+    }
+    r.set_resolved("environment", res);
   }
   // Visibility network: [position, direction] → V.
   {
@@ -240,19 +274,35 @@ void Ours::allocate() {
   initialize(0);
 }
 
-std::uint32_t Ours::n_params() const { return m_property->n_params() + (m_indirect ? m_indirect->n_params() : 0); }
+std::uint32_t Ours::n_params() const {
+  return m_property->n_params() + (m_indirect ? m_indirect->n_params() : 0) +
+         (m_environment ? m_environment->n_params() : 0);
+}
+
+const render::VolumeRenderer& Ours::renderer(std::uint32_t n_env_dirs) const {
+  if (n_env_dirs == 0) return *m_renderer;
+  auto& r = m_env_renderers[n_env_dirs];
+  if (!r) {
+    render::RendererSettings rs = m_settings.renderer;
+    rs.n_env_dirs = n_env_dirs;
+    r = std::make_unique<render::VolumeRenderer>(m_device, rs);
+  }
+  return *r;
+}
 std::uint32_t Ours::n_vis_params() const { return m_visibility->n_params(); }
 
 void Ours::initialize(std::uint64_t seed) {
   std::vector<float> theta(n_params()), psi(n_vis_params());
   m_property->initialize_params(theta.data(), seed);
   if (m_indirect) m_indirect->initialize_params(theta.data() + m_property->n_params(), seed + 1000);
+  if (m_environment)
+    m_environment->initialize_params(theta.data() + m_property->n_params() + m_indirect->n_params(), seed + 3000);
   m_visibility->initialize_params(psi.data(), seed + 2000);
   m_params.write(theta);
   m_vis_params.write(psi);
 }
 
-void Ours::prepare(OursPass& pass, std::uint32_t n_rays) const {
+void Ours::prepare(OursPass& pass, std::uint32_t n_rays, std::uint32_t n_env) const {
   const std::uint32_t n = n_rays * m_settings.renderer.n_samples;
   const std::uint32_t n_sh = m_renderer->n_sh();
   const std::uint32_t prop_out = kPropHeads + m_settings.n_features;
@@ -272,9 +322,10 @@ void Ours::prepare(OursPass& pass, std::uint32_t n_rays) const {
   matrix(pass.props_raw, prop_out);
   matrix(pass.vis_in, 6);
   matrix(pass.vis, 1);
-  matrix(pass.props, m_renderer->prop_cols());
+  const std::uint32_t prop_cols = renderer(n_env).prop_cols();
+  matrix(pass.props, prop_cols);
   matrix(pass.radiance, 3);
-  matrix(pass.d_props, m_renderer->prop_cols());
+  matrix(pass.d_props, prop_cols);
   matrix(pass.d_radiance, 3);
   matrix(pass.d_props_raw, prop_out);
   matrix(pass.net_pos, 3);
@@ -284,18 +335,38 @@ void Ours::prepare(OursPass& pass, std::uint32_t n_rays) const {
     matrix(pass.d_indirect_raw, 3 * n_sh);
     matrix(pass.d_light_in, light_cols);
   }
+  if (n_env > 0) {
+    // Sample-major rows s N_e + j: V_ψ's queries toward the environment directions.
+    const std::uint32_t rows = n * n_env;
+    if (pass.env_vis_in.cols() != 6) pass.env_vis_in = nn::BatchMatrix(m_device, rows, 6);
+    if (pass.env_vis.cols() != 1) pass.env_vis = nn::BatchMatrix(m_device, rows, 1);
+    pass.env_vis_in.resize(rows);
+    pass.env_vis.resize(rows);
+    if (m_environment) {
+      matrix(pass.env_raw, 3 * n_sh);
+      matrix(pass.d_env_raw, 3 * n_sh);
+      matrix(pass.d_env_in, light_cols);
+    }
+  }
   if (!pass.ws_property) {
     pass.ws_property = m_property->make_workspace(m_device);
     if (m_indirect) pass.ws_indirect = m_indirect->make_workspace(m_device);
     pass.ws_visibility = m_visibility->make_workspace(m_device);
   }
+  if (n_env > 0 && !pass.ws_env_visibility) pass.ws_env_visibility = m_visibility->make_workspace(m_device);
+  if (m_environment && n_env > 0 && !pass.ws_environment) pass.ws_environment = m_environment->make_workspace(m_device);
   pass.n_rays = n_rays;
+  pass.n_env = n_env;
 }
 
 void Ours::forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bool training, std::uint32_t seed,
                    const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, bool march,
-                   StageTimer* timer) const {
-  prepare(pass, n_rays);
+                   StageTimer* timer, const render::EnvironmentSamples* env) const {
+  if (env && !m_settings.environment.enabled)
+    throw InvalidArgument("Ours::forward: an environment light was given, but the model was trained without one "
+                          "(model/environment/enabled is false); render it under its point light alone");
+  const std::uint32_t n_env = env ? env->size() : 0;
+  prepare(pass, n_rays, n_env);
   const std::uint32_t spr = m_settings.renderer.n_samples;
   const std::uint32_t n = n_rays * spr;
   const std::uint32_t n_sh = m_renderer->n_sh();
@@ -322,6 +393,24 @@ void Ours::forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bo
     m_visibility->inference(m_device, psi, pass.vis_in, pass.vis, *pass.ws_visibility);
   }
   nn::copy_columns(m_device, pass.vis, 0, pass.props, render::kVisibility, 1);
+  if (n_env > 0) {
+    const std::uint32_t env_col = render::env_visibility_column(n_sh);
+    if (march) {
+      if (pass.env_march.cols() != n_env) pass.env_march = nn::BatchMatrix(m_device, n, n_env);
+      pass.env_march.resize(n);
+      render::march_visibility_directions(m_device, pass.positions, env->dirs(), m_grid, m_settings.march_steps,
+                                          pass.env_march);
+      nn::copy_columns(m_device, pass.env_march, 0, pass.props, env_col, n_env);
+    } else {
+      m_device.kernel("method.cl", "env_visibility_inputs")
+          .args(n, n_env, pass.net_pos.data(), env->dirs().data(), pass.env_vis_in.data(), 0u)
+          .launch(std::size_t(n) * n_env, 64);
+      m_visibility->inference(m_device, psi, pass.env_vis_in, pass.env_vis, *pass.ws_env_visibility);
+      m_device.kernel("method.cl", "env_rows_to_columns")
+          .args(n, n_env, pass.env_vis.data(), pass.props.data(), pass.props.cols(), env_col)
+          .launch(std::size_t(n) * n_env, 64);
+    }
+  }
   mark(timer, "visibility net forward");
   if (n_sh > 0) {
     nn::copy_columns(m_device, pass.props_raw, kPropHeads, pass.light_in, 0, m_settings.n_features);
@@ -329,20 +418,39 @@ void Ours::forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bo
     else m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,
                                    1.0f / m_settings.intensity_reference);
+    if (m_environment && n_env > 0) {  // c += c_env(f(x)): the environment's indirect light, not scaled by I
+      const nn::ConstParamSlice theta_env{&m_params, m_property->n_params() + m_indirect->n_params()};
+      if (training) m_environment->forward(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
+      else m_environment->inference(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
+      nn::copy_columns(m_device, pass.env_raw, 0, pass.props, render::kSH, 3 * n_sh, 1.0f, true);
+    }
     mark(timer, "SH head forward");
   }
-  m_renderer->forward(rays, n_rays, pass.t, pass.delta, pass.props, dirs, sh_basis, pass.radiance, pass.color,
-                      pass.transmittance);
+  const nn::BatchMatrix* basis = &sh_basis;
+  if (m_settings.renderer.closed_form_indirect && n_sh > 0) {  // the closed form needs Y(-w_o) of every ray
+    if (pass.view_basis.cols() != n_sh || pass.view_basis.padded() != nn::padded_batch(n_rays))
+      pass.view_basis = nn::BatchMatrix(m_device, n_rays, n_sh);
+    m_renderer->view_basis(rays, n_rays, pass.view_basis);
+    basis = &pass.view_basis;
+  }
+  renderer(n_env).forward(rays, n_rays, pass.t, pass.delta, pass.props, dirs, *basis, pass.radiance, pass.color,
+                          pass.transmittance, env);
   mark(timer, "lighting + compositing forward");
 }
 
 void Ours::backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMatrix& dirs,
-                    const nn::BatchMatrix& sh_basis, const Buffer<float>& d_color, StageTimer* timer) {
+                    const nn::BatchMatrix& sh_basis, const Buffer<float>& d_color, StageTimer* timer,
+                    const render::EnvironmentSamples* env) {
   check_pass(pass, "backward");
+  const std::uint32_t n_env = env ? env->size() : 0;
+  if (n_env != pass.n_env)
+    throw InvalidArgument("Ours::backward: give the environment samples of the forward pass (" +
+                          std::to_string(pass.n_env) + " directions), got " + std::to_string(n_env));
   const std::uint32_t spr = m_settings.renderer.n_samples;
   const std::uint32_t n_sh = m_renderer->n_sh();
-  m_renderer->backward(rays, pass.n_rays, pass.t, pass.delta, pass.props, dirs, sh_basis, pass.radiance, pass.color,
-                       d_color, pass.d_radiance, pass.d_props);
+  const bool closed = m_settings.renderer.closed_form_indirect && n_sh > 0;
+  renderer(n_env).backward(rays, pass.n_rays, pass.t, pass.delta, pass.props, dirs, closed ? pass.view_basis : sh_basis,
+                           pass.radiance, pass.color, d_color, pass.d_radiance, pass.d_props, env);
   mark(timer, "lighting + compositing backward");
   // No SH head: the features receive no gradient.
   if (n_sh == 0) pass.d_props_raw.data().fill(0.0f);
@@ -356,6 +464,17 @@ void Ours::backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMa
                          pass.d_indirect_raw, {&m_grads, m_property->n_params()}, false, &pass.d_light_in,
                          *pass.ws_indirect);
     nn::copy_columns(m_device, pass.d_light_in, 0, pass.d_props_raw, kPropHeads, m_settings.n_features);
+    if (m_environment) {
+      const std::uint32_t offset = m_property->n_params() + m_indirect->n_params();
+      if (n_env > 0) {
+        nn::copy_columns(m_device, pass.d_props, render::kSH, pass.d_env_raw, 0, 3 * n_sh);
+        m_environment->backward(m_device, {&m_params, offset}, pass.light_in, pass.env_raw, pass.d_env_raw,
+                                {&m_grads, offset}, false, &pass.d_env_in, *pass.ws_environment);
+        nn::copy_columns(m_device, pass.d_env_in, 0, pass.d_props_raw, kPropHeads, m_settings.n_features, 1.0f, true);
+      } else {
+        m_grads.fill(0.0f, offset, m_environment->n_params());  // c_env took no part in this pass
+      }
+    }
     mark(timer, "SH head backward");
   }
   m_property->backward(m_device, {&m_params, 0}, pass.net_pos, pass.props_raw, pass.d_props_raw, {&m_grads, 0}, false,
@@ -364,26 +483,56 @@ void Ours::backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMa
 }
 
 void Ours::visibility_step(OursPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
-                           float weight, StageTimer* timer) {
+                           float weight, StageTimer* timer, const render::EnvironmentSamples* env) {
   check_pass(pass, "visibility_step");
+  const std::uint32_t n_env = env ? env->size() : 0;
+  if (n_env != pass.n_env)
+    throw InvalidArgument("Ours::visibility_step: give the environment samples of the forward pass (" +
+                          std::to_string(pass.n_env) + " directions), got " + std::to_string(n_env));
   const std::uint32_t spr = m_settings.renderer.n_samples;
-  const auto n_sub = std::max<std::uint32_t>(
-      1, std::min(pass.n_rays, static_cast<std::uint32_t>(pass.n_rays * double(m_settings.visibility_fraction) + 0.5)));
-  const std::uint32_t m = n_sub * spr;
-  auto matrix = [&](nn::BatchMatrix& mat, std::uint32_t cols) {
-    if (mat.cols() != cols) mat = nn::BatchMatrix(m_device, m, cols);
-    mat.resize(m);
+  auto subset = [&](float fraction) {
+    return std::max<std::uint32_t>(
+        1, std::min(pass.n_rays, static_cast<std::uint32_t>(pass.n_rays * double(fraction) + 0.5)));
   };
-  matrix(pass.vis_in_sub, 6);
-  matrix(pass.positions_sub, 3);
-  matrix(pass.vis_sub, 1);
-  matrix(pass.vis_target, 1);
-  matrix(pass.d_vis, 1);
+  // Rows [0, m): the samples of the first rays toward their point light; rows [m, m + m_env N_e): the samples of
+  // the first rays toward each environment direction (sample-major). m is a multiple of 16, so the tiled
+  // matrices of the two parts simply follow each other.
+  const std::uint32_t m = subset(m_settings.visibility_fraction) * spr;
+  const std::uint32_t m_env = n_env ? subset(m_settings.environment.visibility_fraction) * spr : 0;
+  const std::uint32_t rows = m + m_env * n_env;
+  auto matrix = [&](nn::BatchMatrix& mat, std::uint32_t cols, std::uint32_t batch) {
+    if (mat.cols() != cols) mat = nn::BatchMatrix(m_device, batch, cols);
+    mat.resize(batch);
+  };
+  matrix(pass.vis_in_sub, 6, rows);
+  matrix(pass.positions_sub, 3, m);
+  matrix(pass.vis_sub, 1, rows);
+  matrix(pass.vis_target, 1, rows);
+  matrix(pass.d_vis, 1, rows);
   // The first m samples of a tiled matrix are its first m * cols floats (m is a multiple of 16).
   pass.vis_in_sub.data().copy_from(pass.vis_in.data(), std::size_t(m) * 6);
   pass.positions_sub.data().copy_from(pass.positions.data(), std::size_t(m) * 3);
-  render::march_visibility(m_device, rays, n_sub, spr, pass.positions_sub, m_grid, m_settings.march_steps,
-                           pass.vis_target);
+  if (n_env == 0) {
+    render::march_visibility(m_device, rays, m / spr, spr, pass.positions_sub, m_grid, m_settings.march_steps,
+                             pass.vis_target);
+  } else {
+    matrix(pass.point_target, 1, m);
+    render::march_visibility(m_device, rays, m / spr, spr, pass.positions_sub, m_grid, m_settings.march_steps,
+                             pass.point_target);
+    pass.vis_target.data().copy_from(pass.point_target.data(), m);
+    matrix(pass.env_positions_sub, 3, m_env);
+    matrix(pass.env_target, n_env, m_env);
+    pass.env_positions_sub.data().copy_from(pass.positions.data(), std::size_t(m_env) * 3);
+    render::march_visibility_directions(m_device, pass.env_positions_sub, env->dirs(), m_grid, m_settings.march_steps,
+                                        pass.env_target);
+    const std::size_t queries = std::size_t(m_env) * n_env;
+    m_device.kernel("method.cl", "env_columns_to_rows")
+        .args(m_env, n_env, pass.env_target.data(), pass.vis_target.data(), m)
+        .launch(queries, 64);
+    m_device.kernel("method.cl", "env_visibility_inputs")
+        .args(m_env, n_env, pass.net_pos.data(), env->dirs().data(), pass.vis_in_sub.data(), m)
+        .launch(queries, 64);
+  }
   mark(timer, "visibility targets (march)");
   const nn::ConstParamSlice psi{&m_vis_params, 0};
   m_visibility->forward(m_device, psi, pass.vis_in_sub, pass.vis_sub, *pass.ws_visibility);

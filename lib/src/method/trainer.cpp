@@ -70,6 +70,24 @@ std::vector<float> DatasetSplit::image(std::size_t i) const {
   return std::vector<float>(images.begin() + i * n, images.begin() + (i + 1) * n);
 }
 
+namespace {
+// The "environment" entry of a transforms file: null, or {file, scale, visible} (docs/dataset-format.md).
+std::shared_ptr<const EnvironmentLight> load_environment(const std::string& dataset_dir, const std::string& file,
+                                                         const Json& env) {
+  if (env.is_null()) return nullptr;
+  const std::string where = (fs::path(dataset_dir) / file).string() + ": environment";
+  if (!env.is_object() || !env.contains("file") || !env["file"].is_string())
+    throw IOError(where + " must be null or {\"file\": ..., \"scale\": ..., \"visible\": ...}, got " + env.dump());
+  const Json scale = env.value("scale", Json(1.0));
+  const Json visible = env.value("visible", Json(false));
+  if (!scale.is_number() || !std::isfinite(scale.get<double>()) || scale.get<double>() < 0)
+    throw IOError(where + "/scale must be a finite number >= 0, got " + scale.dump());
+  if (!visible.is_boolean()) throw IOError(where + "/visible must be true or false, got " + visible.dump());
+  const std::string path = (fs::path(dataset_dir) / env["file"].get<std::string>()).string();
+  return std::make_shared<const EnvironmentLight>(read_image(path), scale.get<float>(), visible.get<bool>(), path);
+}
+}  // namespace
+
 DatasetSplit load_split(const std::string& dataset_dir, const std::string& split, std::size_t max_views) {
   const DatasetDescription desc = read_dataset(dataset_dir);
   auto it = desc.splits.find(split);
@@ -108,7 +126,12 @@ DatasetSplit load_split(const std::string& dataset_dir, const std::string& split
     out.cameras.push_back(f.camera);
     out.lights.push_back(f.light);
   }
+  out.environment = load_environment(dataset_dir, "transforms_" + split + ".json", desc.environment);
   return out;
+}
+
+std::shared_ptr<const EnvironmentLight> dataset_environment(const std::string& dataset_dir) {
+  return load_environment(dataset_dir, "transforms_*.json", read_dataset(dataset_dir).environment);
 }
 
 // ---- trainer -----------------------------------------------------------------------------------------------
@@ -187,13 +210,28 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
     tr.finish();
     r.set_resolved("training", tr.resolved());
   }
-  m_model = std::make_unique<Ours>(device, model, "/model");
+  const DatasetSplit train = load_split(dataset_dir, "train");
+  // The model has an environment light exactly when the dataset has one; relit sets model/environment/enabled.
+  Json model_config = model;
+  {
+    const bool has_env = train.environment != nullptr;
+    const Json* given = model.contains("environment") && model["environment"].is_object() &&
+                                model["environment"].contains("enabled")
+                            ? &model["environment"]["enabled"]
+                            : nullptr;
+    if (given && given->is_boolean() && given->get<bool>() != has_env)
+      throw ConfigError("/model/environment/enabled",
+                        std::string("is ") + (has_env ? "false" : "true") + " but the dataset " + dataset_dir +
+                            (has_env ? " is lit by an environment map ('env+point')" : " has no environment map") +
+                            "; leave it out (relit sets it from the dataset)");
+    if (!given) model_config["environment"]["enabled"] = has_env;
+  }
+  m_model = std::make_unique<Ours>(device, model_config, "/model");
   r.set_resolved("model", m_model->hyperparams());
   r.finish();
   m_config = r.resolved();
   m_config["dataset"] = fs::absolute(dataset_dir).lexically_normal().string();
 
-  const DatasetSplit train = load_split(dataset_dir, "train");
   log_info("training on " + std::to_string(train.size()) + " views of " + dataset_dir + " (" +
             std::to_string(train.width) + "x" + std::to_string(train.height) + ")");
   m_rays = std::make_unique<render::RaySource>(device, train.cameras, train.lights, train.images);
@@ -204,6 +242,12 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
   }
   const auto& rs = m_model->settings().renderer;
   m_indirect = std::make_unique<render::IndirectBasis>(device, rs.n_dirs, rs.sh_lmax);
+  if (train.environment) {
+    m_env = std::make_unique<render::EnvironmentSamples>(device, *train.environment,
+                                                         m_model->settings().environment.n_dirs_training);
+    log_info("environment light " + train.environment->file() + ": " +
+             std::to_string(m_model->settings().environment.n_dirs_training) + " directions per step");
+  }
 
   m_model->initialize(m_settings.seed);
   m_optimizer->allocate(device, m_model->n_params());
@@ -242,7 +286,11 @@ void Trainer::step() {
   if (timer) timer->mark("density grid refresh");
   m_rays->training_batch(b, s.seed, static_cast<std::uint32_t>(m_step), m_ray_buf, m_targets, m_pixel_ids);
   m_indirect->draw(s.seed, static_cast<std::uint32_t>(m_step));
-  m_model->forward(m_pass, m_ray_buf, b, true, seed, m_indirect->dirs(), m_indirect->basis(), false, timer);
+  if (m_env) {
+    m_env->draw(s.seed, static_cast<std::uint32_t>(m_step));
+    m_env->fill_background(m_ray_buf, b);
+  }
+  m_model->forward(m_pass, m_ray_buf, b, true, seed, m_indirect->dirs(), m_indirect->basis(), false, timer, m_env.get());
   // Render loss on the pixel colours.
   rows_to_tiled(m_device, m_pass.color, b, m_color_t);
   rows_to_tiled(m_device, m_targets, b, m_target_t);
@@ -250,9 +298,10 @@ void Trainer::step() {
   m_loss->evaluate(m_device, m_color_t, m_target_t, m_d_color_t, m_loss_value);
   tiled_to_rows(m_device, m_d_color_t, m_d_color);
   if (timer) timer->mark("render loss");
-  m_model->backward(m_pass, m_ray_buf, m_indirect->dirs(), m_indirect->basis(), m_d_color, timer);
+  m_model->backward(m_pass, m_ray_buf, m_indirect->dirs(), m_indirect->basis(), m_d_color, timer, m_env.get());
   // Visibility loss against the density march (constants: θ gets nothing), backward into ψ only.
-  m_model->visibility_step(m_pass, m_ray_buf, *m_vis_loss, m_vis_loss_value, s.visibility_loss_weight, timer);
+  m_model->visibility_step(m_pass, m_ray_buf, *m_vis_loss, m_vis_loss_value, s.visibility_loss_weight, timer,
+                           m_env.get());
   m_device.kernel("method.cl", "step_guard").args(m_loss_value, m_vis_loss_value, m_guard, m_skipped).launch(1, 1);
   m_optimizer->step(m_model->params(), m_model->grads());
   m_vis_optimizer->step(m_model->vis_params(), m_model->vis_grads());
@@ -277,6 +326,7 @@ double Trainer::validate() {
   for (std::size_t i = 0; i < m_val.size(); ++i) {
     RenderSettings rs;
     rs.seed = 7;
+    rs.environment = m_val.environment.get();
     const Image img = render_image(*m_model, m_val.cameras[i], m_val.lights[i], rs);
     sum += metrics::compare(m_device, img.pixels, m_val.image(i), m_val.width, m_val.height, 3).psnr;
   }
@@ -421,9 +471,19 @@ Image render_image(const Ours& model, const Camera& camera, const PointLight& li
     throw InvalidArgument("render_image: visibility must be \"network\" or \"march\", got \"" + vis + "\"");
   const Device& device = model.device();
   const std::uint32_t total = static_cast<std::uint32_t>(camera.width) * camera.height;
-  const std::uint32_t tile = std::min(settings.tile_rays, total);
+  std::uint32_t tile = std::min(settings.tile_rays, total);
   const auto& rs = model.settings().renderer;
   render::IndirectBasis basis(device, rs.n_dirs, rs.sh_lmax);
+  std::unique_ptr<render::EnvironmentSamples> env;
+  if (settings.environment) {
+    if (!model.settings().environment.enabled)
+      throw InvalidArgument("render_image: the model was trained without an environment light; render it under "
+                            "its point light alone (no environment)");
+    const std::uint32_t n_env = model.settings().environment.n_dirs;
+    env = std::make_unique<render::EnvironmentSamples>(device, *settings.environment, n_env);
+    // N_e visibility queries per sample: keep a tile's queries near 2^19.
+    tile = std::min(tile, std::max<std::uint32_t>(16, (1u << 19) / (rs.n_samples * n_env)));
+  }
   OursPass pass;
   Buffer<float> rays(device, std::size_t(tile) * render::kRayFloats);
   Image out(camera.width, camera.height, 3);
@@ -432,7 +492,11 @@ Image render_image(const Ours& model, const Camera& camera, const PointLight& li
     const std::uint32_t n = std::min(tile, total - first);
     render::image_rays(device, camera, light, first, n, rays);
     basis.draw(settings.seed, k);
-    model.forward(pass, rays, n, false, settings.seed, basis.dirs(), basis.basis(), vis == "march");
+    if (env) {
+      env->draw(settings.seed, k);
+      env->fill_background(rays, n);
+    }
+    model.forward(pass, rays, n, false, settings.seed, basis.dirs(), basis.basis(), vis == "march", nullptr, env.get());
     pass.color.read(out.pixels.data() + std::size_t(first) * 3, 3 * std::size_t(n));
     tracker.update(first + n);
   }

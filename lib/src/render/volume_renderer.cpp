@@ -38,7 +38,8 @@ void VolumeRenderer::view_basis(const Buffer<float>& rays, std::uint32_t n_rays,
   if (out.cols() != m_n_sh) throw InvalidArgument("VolumeRenderer::view_basis: the output needs n_sh columns");
   out.resize(n_rays);
   if (!m_sh || n_rays == 0) return;
-  if (m_view_dirs.cols() != 3) m_view_dirs = nn::BatchMatrix(m_device, n_rays, 3);
+  // The SH encoding wants its input padded as its output: reallocate when the padding differs.
+  if (m_view_dirs.cols() != 3 || m_view_dirs.padded() != out.padded()) m_view_dirs = nn::BatchMatrix(m_device, n_rays, 3);
   m_view_dirs.resize(n_rays);
   m_device.kernel("render.cl", "view_directions", m_defines).args(n_rays, rays, m_view_dirs.data()).launch(n_rays, 16);
   m_sh->forward(m_device, {nullptr, 0}, m_view_dirs, out, 0, nullptr);

@@ -2,8 +2,9 @@
 // renderer.
 //
 //   positions x ──► property net F_θ ──► σ (softplus), albedo (sigmoid), g (0.95 tanh), feature f
-//   [f, p_l]   ──► indirect SH head h_θ ──► c = (I / I_ref) ⊙ h          (scaled by the light's RGB intensity)
-//   [x, ω_l]   ──► visibility net V_ψ  ──► V (sigmoid)
+//   [f, p_l]   ──► indirect SH head h_θ ──► c = (I / I_ref) ⊙ h + c_env  (scaled by the light's RGB intensity)
+//   f          ──► environment head e_θ ──► c_env (position-only; only with an environment map)
+//   [x, ω_l]   ──► visibility net V_ψ  ──► V (sigmoid), toward the point light and each environment direction
 //   σ, a, g, V, c ──► VolumeRenderer ──► pixel colour
 //
 // θ (property net + SH head) and ψ (visibility net) live in two flat parameter buffers with their own
@@ -18,15 +19,26 @@
 #include <relit/nn/loss.hpp>
 #include <relit/nn/module.hpp>
 #include <relit/nn/network_with_encoding.hpp>
+#include <relit/render/environment.hpp>
 #include <relit/render/visibility.hpp>
 #include <relit/render/volume_renderer.hpp>
 
+#include <map>
 #include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
 namespace relit::method {
+
+/// The environment light of 'env+point' datasets (DESIGN §4.2-4.3): S_env over N_e importance-sampled
+/// directions, each with its own visibility query, and the position-only SH head c_env(x).
+struct EnvironmentSettings {
+  bool enabled = false;                   ///< the model has c_env and trains S_env (relit train sets it from the dataset)
+  std::uint32_t n_dirs = 32;              ///< N_e when rendering under the environment
+  std::uint32_t n_dirs_training = 4;      ///< N_e of a training step (fresh directions every step)
+  float visibility_fraction = 0.0625f;    ///< share of a batch's rays whose samples train V_ψ toward the N_e directions
+};
 
 /// Resolved settings of the model (the non-network keys of the "model" config object).
 struct OursSettings {
@@ -40,6 +52,7 @@ struct OursSettings {
   std::uint32_t march_steps = 64;         ///< midpoint steps of the visibility-target march
   float visibility_fraction = 0.25f;      ///< share of a batch's rays whose samples train the visibility net
   std::string inference_visibility = "network";  ///< "network" (as the paper) or "march" (density grid)
+  EnvironmentSettings environment;
 };
 
 /// Per-stage timing of a training step, for profiling: when enabled, mark() waits for the device and adds the
@@ -68,7 +81,13 @@ struct OursPass {
   nn::BatchMatrix positions, net_pos, props_raw, light_in, indirect_raw, vis_in, vis, props, radiance;
   nn::BatchMatrix d_props, d_radiance, d_props_raw, d_indirect_raw, d_light_in;
   nn::BatchMatrix vis_in_sub, positions_sub, vis_sub, vis_target, d_vis;  // the visibility net's training subset
-  std::unique_ptr<nn::Workspace> ws_property, ws_indirect, ws_visibility;
+  // With an environment: V_ψ's inputs toward the N_e directions (sample-major rows s N_e + j), its outputs, the
+  // head's c_env, and the march targets of the environment rows of the visibility subset.
+  std::uint32_t n_env = 0;
+  nn::BatchMatrix view_basis;  // closed-form indirect: Y(-w_o) per ray, in place of the K directions' basis
+  nn::BatchMatrix env_vis_in, env_vis, env_raw, d_env_raw, d_env_in, env_march, env_positions_sub, env_target,
+      point_target;
+  std::unique_ptr<nn::Workspace> ws_property, ws_indirect, ws_visibility, ws_env_visibility, ws_environment;
 };
 
 class Ours {
@@ -82,10 +101,12 @@ class Ours {
   const OursSettings& settings() const { return m_settings; }
   /// The resolved "model" config: building from it gives the same model.
   const Json& hyperparams() const { return m_resolved; }
+  /// The renderer without environment light; renderer(N_e) the one for N_e environment directions.
   const render::VolumeRenderer& renderer() const { return *m_renderer; }
+  const render::VolumeRenderer& renderer(std::uint32_t n_env_dirs) const;
   const Device& device() const { return m_device; }
 
-  /// θ: [property net | SH head]; ψ: the visibility net.
+  /// θ: [property net | SH head | environment head]; ψ: the visibility net.
   std::uint32_t n_params() const;
   std::uint32_t n_vis_params() const;
   Buffer<float>& params() { return m_params; }
@@ -100,27 +121,35 @@ class Ours {
   const nn::NetworkWithInputEncoding& property_network() const { return *m_property; }
   const nn::NetworkWithInputEncoding& indirect_network() const { return *m_indirect; }
   const nn::NetworkWithInputEncoding& visibility_network() const { return *m_visibility; }
+  /// The position-only environment SH head (null without an environment or without SH).
+  const nn::NetworkWithInputEncoding* environment_network() const { return m_environment.get(); }
 
-  /// Sizes the pass for `n_rays` rays (allocates only when it grows).
-  void prepare(OursPass& pass, std::uint32_t n_rays) const;
+  /// Sizes the pass for `n_rays` rays and `n_env` environment directions (allocates only when it grows).
+  void prepare(OursPass& pass, std::uint32_t n_rays, std::uint32_t n_env = 0) const;
 
-  /// Samples the rays (sample positions, jittered when training), runs the three networks and assembles the
+  /// Samples the rays (sample positions, jittered when training), runs the networks and assembles the
   /// renderer's property matrix. `training` keeps the activations for backward(); `march_visibility`
-  /// replaces the visibility network by a march through the density grid (inference option).
+  /// replaces the visibility network by a march through the density grid (inference option). `env`: the
+  /// environment directions of this pass (EnvironmentSamples::draw()), for a model trained with an
+  /// environment; null renders under the point light alone (S_env = 0, c_env = 0).
   void forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bool training, std::uint32_t seed,
                const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, bool march_visibility = false,
-               StageTimer* timer = nullptr) const;
+               StageTimer* timer = nullptr, const render::EnvironmentSamples* env = nullptr) const;
 
   /// Given dL/dcolour (n_rays x 3, rows): writes dL/dθ into grads() (overwriting). The visibility network
-  /// gets nothing (gradient isolation).
+  /// gets nothing (gradient isolation). `env` as given to forward().
   void backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis,
-                const Buffer<float>& d_color, StageTimer* timer = nullptr);
+                const Buffer<float>& d_color, StageTimer* timer = nullptr,
+                const render::EnvironmentSamples* env = nullptr);
 
   /// One visibility-network gradient: on the samples of the pass's first visibility_fraction of rays, the
   /// loss of V_ψ against the transmittance of the density grid toward the light (constants, so θ gets
-  /// nothing). Writes dL/dψ into vis_grads() (overwriting) and the mean loss into `value` (on the device).
+  /// nothing); after an environment forward pass, also on the samples of the first
+  /// environment.visibility_fraction of rays toward each environment direction. Writes dL/dψ into
+  /// vis_grads() (overwriting) and the mean loss over all these queries into `value` (on the device).
   void visibility_step(OursPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
-                       float weight = 1.0f, StageTimer* timer = nullptr);
+                       float weight = 1.0f, StageTimer* timer = nullptr,
+                       const render::EnvironmentSamples* env = nullptr);
 
   /// Re-evaluates the density grid from the current θ (the property net's σ at the voxel centres).
   void refresh_density_grid();
@@ -135,7 +164,8 @@ class Ours {
   OursSettings m_settings;
   Json m_resolved;
   std::unique_ptr<render::VolumeRenderer> m_renderer;
-  std::unique_ptr<nn::NetworkWithInputEncoding> m_property, m_indirect, m_visibility;
+  mutable std::map<std::uint32_t, std::unique_ptr<render::VolumeRenderer>> m_env_renderers;  // by N_e
+  std::unique_ptr<nn::NetworkWithInputEncoding> m_property, m_indirect, m_visibility, m_environment;
   Buffer<float> m_params, m_grads, m_vis_params, m_vis_grads;
   render::DensityGrid m_grid;
   nn::BatchMatrix m_grid_positions, m_grid_props;

@@ -23,6 +23,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,8 @@ struct DatasetSplit {
   std::vector<PointLight> lights;
   std::vector<float> images;
   int width = 0, height = 0;
+  /// The environment light of an 'env+point' dataset (every view is lit by it as well), or null.
+  std::shared_ptr<const EnvironmentLight> environment;
   std::size_t size() const { return cameras.size(); }
   /// View i's image (h x w x 3).
   std::vector<float> image(std::size_t i) const;
@@ -54,6 +57,9 @@ struct DatasetSplit {
 /// Reads a split of a dataset folder (docs/dataset-format.md). `max_views` > 0 keeps that many views,
 /// spread evenly over the split. Throws IOError naming the folder/file when something is missing or corrupt.
 DatasetSplit load_split(const std::string& dataset_dir, const std::string& split, std::size_t max_views = 0);
+
+/// The environment light of an 'env+point' dataset folder, or null for 'point' data.
+std::shared_ptr<const EnvironmentLight> dataset_environment(const std::string& dataset_dir);
 
 /// The non-model keys of a run config's "training" object.
 struct TrainingSettings {
@@ -130,6 +136,7 @@ class Trainer {
   std::unique_ptr<nn::Optimizer> m_optimizer, m_vis_optimizer;
   std::unique_ptr<render::RaySource> m_rays;
   std::unique_ptr<render::IndirectBasis> m_indirect;
+  std::unique_ptr<render::EnvironmentSamples> m_env;  // 'env+point' datasets: the training step's N_e directions
   DatasetSplit m_val;
   std::string m_out;
   OursPass m_pass;
@@ -146,6 +153,9 @@ struct RenderSettings {
   std::uint32_t seed = 0;          ///< draws the indirect directions
   /// "" uses the model's inference_visibility setting; "network" or "march" override it.
   std::string visibility;
+  /// Light the scene with this environment map as well (a model trained on 'env+point' data; it is sampled
+  /// in model/environment/n_dirs directions). Null: the point light alone.
+  const EnvironmentLight* environment = nullptr;
 };
 
 /// Renders `camera`'s image under `light` with the model: linear RGB (3 channels), in tiles, with progress
