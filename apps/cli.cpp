@@ -26,6 +26,7 @@ int run(const std::vector<std::string>& args) {
   add_render_command(app);
   add_eval_command(app);
   add_demo_command(app);
+  add_bench_command(app);
 
   std::vector<std::string> reversed(args.rbegin(), args.rend() - (args.empty() ? 0 : 1));
   try {

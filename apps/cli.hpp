@@ -20,5 +20,6 @@ void add_train_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 void add_demo_command(CLI::App& app);
+void add_bench_command(CLI::App& app);
 
 }  // namespace relit::cli
