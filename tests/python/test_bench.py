@@ -5,7 +5,8 @@ import json
 from conftest import run_python
 
 KERNEL_CASES = {"peak_fma_f16", "peak_fma_f8", "mlp_w64_forward", "mlp_w64_train", "mlp_w128_forward",
-                "mlp_w128_train", "mlp_w256_forward", "mlp_w256_train", "hashgrid_forward_backward", "adam_step",
+                "mlp_w128_train", "mlp_w256_forward", "mlp_w256_train", "hashgrid_forward_backward",
+                "render_forward_backward", "adam_step",
                 "pathtrace_cloud"}
 
 
