@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """relit against a PyTorch implementation of the same "Ours" models, on the same machine in one session.
 
-Runs `relit bench --suite e2e` (one training iteration of the fast and paper presets, one 128x128 frame) and
-bench/peers/torch_ours.py for both presets, then writes OUT.json (every number) and OUT.md (the ratios).
+Runs `relit bench --suite e2e` (one training iteration of the fast and paper presets, one 128x128 frame),
+bench/peers/torch_ours.py for both presets, and bench_mlp (the fused MLPs against a CLBlast GEMM chain and an
+Eigen/OpenMP chain on the same batch), then writes OUT.json (every number) and OUT.md (the ratios).
 
     python3 bench/peers/compare.py --relit build/apps/relit --out peers     # PyTorch: apt-get install python3-torch
 """
@@ -21,6 +22,7 @@ def main():
     ap.add_argument("--python", default="/usr/bin/python3", help="a Python with torch (Debian: python3-torch)")
     ap.add_argument("--out", default="peers", help="writes OUT.json and OUT.md")
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--bench-mlp", default="build/bench/bench_mlp", help="the bench_mlp program ('' to skip)")
     args = ap.parse_args()
     if subprocess.run([args.python, "-c", "import torch"], capture_output=True).returncode != 0:
         sys.exit("%s cannot import torch; install it (Debian: apt-get install python3-torch) or pass --python" %
@@ -46,6 +48,19 @@ def main():
     lines = ["| | relit [s] | PyTorch %s [s] | speed-up |" % peers["fast"]["torch_version"], "|---|---:|---:|---:|"]
     lines += ["| %s | %.3f | %.3f | %.1fx |" % row for row in rows]
     doc = {"relit": relit, "pytorch": peers, "ratios": {row[0]: row[3] for row in rows}}
+    if args.bench_mlp:
+        mlp_json = args.out + ".bench_mlp.json"
+        subprocess.run([args.bench_mlp, "--json", mlp_json], check=True, stdout=subprocess.DEVNULL)
+        mlp = json.load(open(mlp_json))
+        doc["bench_mlp"] = mlp
+        lines += ["", "| fused MLP, batch 76,800 | vs CLBlast chain (forward / train) | vs Eigen chain (forward / train) |",
+                  "|---|---:|---:|"]
+        for net in mlp["nets"]:
+            c, e = net.get("speedup_vs_clblast", {}), net.get("speedup_vs_eigen", {})
+            lines.append("| %s | %.1fx / %.1fx | %.2fx / %.2fx |" % (net["name"], c.get("forward", float("nan")),
+                                                                   c.get("train", float("nan")),
+                                                                   e.get("forward", float("nan")),
+                                                                   e.get("train", float("nan"))))
     with open(args.out + ".json", "w") as f:
         json.dump(doc, f, indent=2)
     with open(args.out + ".md", "w") as f:
