@@ -25,6 +25,16 @@ __kernel void probe_brdf_sample(const uint n, const uint seed, const float4 wo_r
   out_f[i] = (float4)(brdf_eval(nrm, wo_r.xyz, wi, base.xyz, wo_r.w) * fmax(wi.z, 0.0f), 0.0f);
 }
 
+// out[i] = f(wo_i, wi_i) (RGB) for direction pairs (wo, wi) = (pairs[2i], pairs[2i+1]), normal +z; roughness in .w
+// of the first direction of each pair.
+__kernel void probe_brdf_eval(const uint n, __global const float4* pairs, const float4 base, __global float4* out) {
+  const size_t i = get_global_id(0);
+  if (i >= n) return;
+  const float3 nrm = (float3)(0.0f, 0.0f, 1.0f);
+  const float4 a = pairs[2 * i], b = pairs[2 * i + 1];
+  out[i] = (float4)(brdf_eval(nrm, a.xyz, b.xyz, base.xyz, a.w), 0.0f);
+}
+
 #define PROBE_SCENE_ARGS                                                                                   \
   __global const float *density, const int4 density_dims, const float density_scale,                      \
       __global const float *majorant, const int4 majorant_dims, __global const float4 *env,                 \

@@ -7,6 +7,7 @@
 #include <relit/pathtrace.hpp>
 #include <relit/scene/procedural.hpp>
 
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -412,6 +413,42 @@ TEST(PathTraceSampling, BrdfMatchesReferenceAndItsSamplerIsUnbiased) {
     const double am = area / n, asd = std::sqrt(std::max(area2 / n - am * am, 0.0) / n);
     EXPECT_NEAR(am, 2 * kPi, 5 * asd + 1e-3) << "the sampler's pdf must be its density, r = " << r;
   }
+}
+
+TEST(PathTraceSampling, BrdfIsReciprocal) {
+  // The GGX + Lambert BRDF the solids use: f(wo, wi) = f(wi, wo), evaluated with the device's brdf_eval on
+  // random pairs of directions and roughnesses.
+  const Device dev = test::test_device();
+  Kernel k = dev.kernel("pathtrace_probe.cl", "probe_brdf_eval");
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(0, 1);
+  auto upper = [&] {
+    const double z = u(rng) * 0.98 + 0.02, ph = 2 * kPi * u(rng), s = std::sqrt(1 - z * z);
+    return std::array<double, 3>{s * std::cos(ph), s * std::sin(ph), z};
+  };
+  const cl_uint n = 4000;
+  std::vector<cl_float4> pairs;
+  std::vector<double> rough;
+  for (cl_uint i = 0; i < n; ++i) {
+    const auto a = upper(), b = upper();
+    const double r = 0.05 + 0.95 * u(rng);
+    rough.push_back(r);
+    pairs.push_back({{float(a[0]), float(a[1]), float(a[2]), float(r)}});
+    pairs.push_back({{float(b[0]), float(b[1]), float(b[2]), 0}});
+  }
+  std::vector<cl_float4> swapped(pairs.size());
+  for (cl_uint i = 0; i < n; ++i) {
+    swapped[2 * i] = pairs[2 * i + 1];
+    swapped[2 * i].s[3] = pairs[2 * i].s[3];
+    swapped[2 * i + 1] = pairs[2 * i];
+  }
+  const cl_float4 white{{1, 1, 1, 0}};
+  Buffer<cl_float4> in(dev, pairs), in_swapped(dev, swapped), f(dev, n), g(dev, n);
+  k.args(n, in, white, f).launch(n, 64);
+  k.args(n, in_swapped, white, g).launch(n, 64);
+  const auto fa = f.read(), fb = g.read();
+  for (cl_uint i = 0; i < n; ++i)
+    ASSERT_NEAR(fa[i].s[0], fb[i].s[0], 1e-4f * (1 + fa[i].s[0])) << "pair " << i << ", roughness " << rough[i];
 }
 
 TEST(PathTraceRender, SolidSphereUnderAPointLightMatchesTheAnalyticShading) {
