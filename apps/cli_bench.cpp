@@ -5,6 +5,7 @@
 #include "cli.hpp"
 #include "hashgrid_reference.hpp"  // tests/support: double-precision references shared with the tests
 #include "mlp_reference.hpp"
+#include "peak_reference.hpp"
 #include "renderer_reference.hpp"
 
 #include <relit/cl/program.hpp>
@@ -137,18 +138,7 @@ reference::Mat rows_of(const std::vector<float>& row_major, std::uint32_t rows, 
 // ---- kernel cases ------------------------------------------------------------------------------------------
 
 // The calibrated FMA peak (kernels/peak.cl): independent accumulator chains, lane-varying data, result stored.
-float peak_host(std::size_t gid, unsigned iters, float c, unsigned lanes) {
-  float s = 0.0f;
-  const float base = static_cast<float>(gid % 64u) * 0.001f;
-  for (unsigned i = 0; i < 12; ++i)
-    for (unsigned l = 0; l < lanes; ++l) {
-      float a = std::fma(static_cast<float>(l), 0.01f, base + static_cast<float>(i) * 0.1f);
-      const float b = std::fma(static_cast<float>(l), 0.001f, static_cast<float>(i) * 0.01f);
-      for (unsigned it = 0; it < iters; ++it) a = std::fma(a, c, b);
-      s += a;
-    }
-  return s;
-}
+using reference::peak_host;
 
 void add_peak(std::vector<Case>& cases, const Device& device, bool quick) {
   for (const auto& [name, lanes] : {std::pair<std::string, unsigned>{"peak_fma_f16", 16}, {"peak_fma_f8", 8}}) {

@@ -6,7 +6,8 @@
 //
 // FLOPs: 2 per multiply-add; forward = 2 * sum(in * out) per sample; training step = 3 x forward
 // (forward + dL/dinput + dL/dweights). Timings are medians over --reps runs, each ended by clFinish.
-#include "mlp_reference.hpp"  // tests/support
+#include "mlp_reference.hpp"
+#include "peak_reference.hpp"  // tests/support
 
 #include <relit/cl/program.hpp>
 #include <relit/nn/fully_fused_mlp.hpp>
@@ -74,19 +75,7 @@ struct PeakResult {
   double gflops = 0;
 };
 
-float peak_host(std::size_t gid, unsigned iters, float c, unsigned lanes) {
-  float s = 0.0f;
-  const float base = static_cast<float>(gid % 64u) * 0.001f;
-  // Sum in the kernel's order (chain, then lane).
-  for (unsigned i = 0; i < 12; ++i)
-    for (unsigned l = 0; l < lanes; ++l) {
-      float a = std::fma(static_cast<float>(l), 0.01f, base + static_cast<float>(i) * 0.1f);
-      const float b = std::fma(static_cast<float>(l), 0.001f, static_cast<float>(i) * 0.01f);
-      for (unsigned it = 0; it < iters; ++it) a = std::fma(a, c, b);
-      s += a;
-    }
-  return s;
-}
+using reference::peak_host;
 
 std::vector<PeakResult> measure_peak(const Device& device, const Options& o) {
   std::vector<PeakResult> out;
