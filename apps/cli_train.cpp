@@ -56,7 +56,7 @@ int run_train(const TrainOptions& o) {
   method::Trainer trainer(device, o.dataset, config);
   if (o.profile) {
     std::cout << "per-stage time of one step (mean of " << o.profile << " steps, " << trainer.settings().batch_rays
-              << " rays x " << trainer.model().settings().renderer.n_samples << " samples) on " << device.info().name
+              << " rays, method " << trainer.model().method() << ") on " << device.info().name
               << ":\n";
     double total = 0;
     for (const auto& [stage, ms] : trainer.profile(o.profile)) {
@@ -129,7 +129,7 @@ int run_render(const RenderOptions& o) {
       throw InvalidArgument("--view: no view " + std::to_string(index) + " in split '" + split + "'");
     camera = it->second[index].camera;
     light = it->second[index].light;
-    if (model->settings().environment.enabled) environment = method::dataset_environment(o.view.substr(0, b));
+    if (model->has_environment()) environment = method::dataset_environment(o.view.substr(0, b));
   } else {
     const auto e = triple(o.eye, "--eye"), t = triple(o.target, "--target");
     camera = Camera::look_at({e[0], e[1], e[2]}, {t[0], t[1], t[2]}, {0, 0, 1}, o.fov, o.resolution, o.resolution);
@@ -186,7 +186,7 @@ int run_eval(const EvalOptions& o) {
   eo.visibility = o.visibility;
   const std::string out = o.out.empty() ? (fs::path(o.run) / "eval").string() : o.out;
   const Json meta{{"run", o.run}, {"dataset", dataset}, {"step", header.value("step", Json())},
-                  {"device", device.info().name}, {"visibility", o.visibility.empty() ? model->settings().inference_visibility : o.visibility}};
+                  {"device", device.info().name}, {"visibility", o.visibility.empty() ? model->inference_visibility() : o.visibility}};
   ProgressBar bar("eval");
   const auto views = method::evaluate(*model, dataset, out, eo, meta, [&](const Progress& p) { return bar(p); });
   bar.finish();

@@ -48,7 +48,7 @@ PointLight light_from(const py::object& light) {
   throw InvalidArgument("light must be a relit.PointLight");
 }
 
-py::array_t<float> render(const method::Ours& model, const Camera& camera, const py::object& light,
+py::array_t<float> render(const method::Model& model, const Camera& camera, const py::object& light,
                           const std::string& visibility, std::uint32_t seed, const py::object& environment) {
   const PointLight l = light_from(light);
   method::RenderSettings rs;
@@ -116,7 +116,9 @@ void bind_method(py::module_& m) {
                ", val_psnr=" + std::to_string(s.val_psnr) + ")";
       });
 
-  py::class_<method::Ours>(m, "Model", "A trained relightable model (\"Ours\"): renders any camera under any point light.")
+  py::class_<method::Model>(m, "Model",
+                            "A trained relightable model (any method: ours, bi, nerv): renders any camera under any "
+                            "point light.")
       .def_static(
           "load",
           [](const std::string& path, const py::object& device) { return method::load_model(device_arg(device), path); },
@@ -126,11 +128,12 @@ void bind_method(py::module_& m) {
            "Renders camera's image under the point light: float32 (height, width, 3), linear RGB. visibility:\n"
            "\"network\" or \"march\" (default: the model's setting). environment: a relit.EnvironmentLight\n"
            "lighting the scene as well (models trained on 'env+point' data), e.g. EnvironmentLight.from_dataset(path).")
-      .def_property_readonly("has_environment", [](const method::Ours& o) { return o.settings().environment.enabled; },
+      .def_property_readonly("has_environment", [](const method::Model& o) { return o.has_environment(); },
                              "whether the model was trained with an environment light ('env+point' data)")
-      .def_property_readonly("n_params", &method::Ours::n_params)
-      .def_property_readonly("n_visibility_params", &method::Ours::n_vis_params)
-      .def_property_readonly("config", [](const method::Ours& o) { return json_to_python(o.hyperparams()); });
+      .def_property_readonly("method", &method::Model::method, "the method: \"ours\", \"bi\" or \"nerv\"")
+      .def_property_readonly("n_params", &method::Model::n_params)
+      .def_property_readonly("n_visibility_params", &method::Model::n_vis_params)
+      .def_property_readonly("config", [](const method::Model& o) { return json_to_python(o.hyperparams()); });
 
   py::class_<RunIterator>(m, "_RunIterator")
       .def("__iter__", [](RunIterator& it) -> RunIterator& { return it; })
@@ -164,7 +167,7 @@ void bind_method(py::module_& m) {
       .def_property_readonly("steps", &method::Trainer::steps)
       .def_property_readonly("config", [](const method::Trainer& t) { return json_to_python(t.config()); })
       .def_property_readonly(
-          "model", [](method::Trainer& t) -> method::Ours& { return t.model(); }, py::return_value_policy::reference_internal);
+          "model", [](method::Trainer& t) -> method::Model& { return t.model(); }, py::return_value_policy::reference_internal);
 }
 
 }  // namespace relit::python

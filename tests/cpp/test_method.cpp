@@ -446,11 +446,11 @@ TEST_F(MethodTrainer, EnvPointDatasetsTrainTheEnvironmentPartsAndResume) {
   cfg["training"]["batch_rays"] = 128;
   method::Trainer straight(dev, ds, cfg);
   EXPECT_EQ(straight.config()["model"]["environment"]["enabled"], true);
-  ASSERT_NE(straight.model().environment_network(), nullptr);
+  ASSERT_NE(dynamic_cast<method::Ours&>(straight.model()).environment_network(), nullptr);
   const auto env_before = straight.model().params().read();
   straight.run(6);
   // c_env's parameters (the last block of θ) moved.
-  const std::size_t env_params = straight.model().environment_network()->n_params();
+  const std::size_t env_params = dynamic_cast<method::Ours&>(straight.model()).environment_network()->n_params();
   const auto after = straight.model().params().read();
   double moved = 0;
   for (std::size_t i = after.size() - env_params; i < after.size(); ++i) moved += std::fabs(after[i] - env_before[i]);

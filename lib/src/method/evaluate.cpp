@@ -6,7 +6,7 @@
 
 namespace relit::method {
 
-std::vector<report::ViewResult> evaluate(const Ours& model, const std::string& dataset_dir, const std::string& out_dir,
+std::vector<report::ViewResult> evaluate(const Model& model, const std::string& dataset_dir, const std::string& out_dir,
                                          const EvalOptions& options, const Json& meta, const ProgressCallback& progress) {
   if (options.splits.empty()) throw InvalidArgument("evaluate: no splits given");
   std::vector<DatasetSplit> splits;

@@ -102,13 +102,13 @@ void StageTimer::mark(const std::string& stage) {
   m_last = t;
 }
 
-Ours::Ours(const Device& device, const Json& config, const std::string& pointer) : m_device(device) {
+Ours::Ours(const Device& device, const Json& config, const std::string& pointer) : Model(device) {
   configure(config, pointer, nullptr);
   allocate();
 }
 
 void Ours::describe(config::Docs& docs) {
-  Ours o;
+  Ours o(Variant::ours);
   o.configure(Json::object(), "/model", &docs);
 }
 
@@ -123,26 +123,35 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   {
     config::Reader rr(r.sub("renderer", Json::object(), "object", "the volume renderer (DESIGN §4.2)"),
                       r.pointer("renderer"), "renderer");
-    s.renderer.n_samples = rr.uint("n_samples", 64, 16, 1024, "samples per ray (a multiple of 16)");
+    s.renderer.n_samples = rr.uint("n_samples", 64, 16, 1024,
+                                   m_variant == Variant::bi ? "stratified samples per ray of the coarse network (a multiple of 16)"
+                                                            : "samples per ray (a multiple of 16)");
     if (s.renderer.n_samples % 16) rr.fail("n_samples", "must be a multiple of 16, got " + std::to_string(s.renderer.n_samples));
-    const std::string sh = rr.choice("sh", "5", {"none", "0", "1", "2", "3", "4", "5", "6", "7", "8", "9"},
+    const bool has_sh = m_variant == Variant::ours;
+    if (!has_sh) configure_renderer_extra(rr);
+    const std::string sh = !has_sh ? std::string("none") : rr.choice("sh", "5", {"none", "0", "1", "2", "3", "4", "5", "6", "7", "8", "9"},
                                      "SH bands of the indirect light: l_max, or none (no indirect light)");
     s.renderer.sh_lmax = sh == "none" ? -1 : std::stoi(sh);
-    s.renderer.n_dirs = rr.uint("n_dirs", 64, 1, 4096, "K, uniform directions of the indirect-light sum");
-    s.renderer.closed_form_indirect = rr.boolean("closed_form_indirect", false,
+    if (has_sh) s.renderer.n_dirs = rr.uint("n_dirs", 64, 1, 4096, "K, uniform directions of the indirect-light sum");
+    if (has_sh) s.renderer.closed_form_indirect = rr.boolean("closed_form_indirect", false,
                                                  "closed-form indirect light sum_lm g^l c_lm Y_lm(-w_o) instead of "
                                                  "the K-direction sum (no max(0, .) clamp)");
     rr.finish();
     record(rr);
     r.set_resolved("renderer", rr.resolved());
   }
-  s.n_features = r.uint("n_features", 11, 1, 256, "feature columns passed from the property net to the SH head");
-  s.intensity_reference = r.number("intensity_reference", 1000.0f, 1e-6f, 1e9f,
-                                   "I_ref [W/sr]: the SH head predicts indirect light per unit I / I_ref");
-  s.light_position_scale =
-      r.number("light_position_scale", 0.125f, 1e-6f, 1e3f, "the SH head sees the light position times this");
-  s.light_conditioned = r.boolean("light_conditioned", true,
-                                  "condition the SH head on the light position (false: c = c(x), an ablation)");
+  if (m_variant == Variant::ours) {
+    s.n_features = r.uint("n_features", 11, 1, 256, "feature columns passed from the property net to the SH head");
+    s.intensity_reference = r.number("intensity_reference", 1000.0f, 1e-6f, 1e9f,
+                                     "I_ref [W/sr]: the SH head predicts indirect light per unit I / I_ref");
+    s.light_position_scale =
+        r.number("light_position_scale", 0.125f, 1e-6f, 1e3f, "the SH head sees the light position times this");
+    s.light_conditioned = r.boolean("light_conditioned", true,
+                                    "condition the SH head on the light position (false: c = c(x), an ablation)");
+  } else {
+    s.n_features = 1;  // no SH head: one unused feature column keeps the property net's heads alike
+    s.light_conditioned = false;
+  }
   {
     config::Reader gr(r.sub("density_grid", Json::object(), "object", "the cached density grid of visibility targets"),
                       r.pointer("density_grid"), "density_grid");
@@ -171,7 +180,8 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     e.visibility_fraction = sub.reader.number("visibility_fraction", 0.0625f, 1e-3f, 1.0f,
                                               "share of each batch's rays whose samples train the visibility net "
                                               "toward the environment directions");
-    env_network = sub.component("network", default_environment(), "the c_env head's MLP on the features (output: none)");
+    if (m_variant == Variant::ours)
+      env_network = sub.component("network", default_environment(), "the c_env head's MLP on the features (output: none)");
     sub.finish();
     env_resolved = sub.reader.resolved();
   }
@@ -213,7 +223,7 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     if (!s.light_conditioned) res["light_encoding"] = lenc;
     res["light_encoding"].erase("n_dims_to_encode");
     r.set_resolved("indirect", res);
-  } else {
+  } else if (m_variant == Variant::ours) {
     r.sub("indirect", default_indirect(), "object", "indirect SH head h_θ: {light_encoding, network}");
   }
   // Environment SH head: features → 3 n_sh coefficients of the environment's indirect light (not scaled by I).
@@ -229,8 +239,9 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     }
     r.set_resolved("environment", res);
   }
+  configure_extra(r, docs);
   // Visibility network: [position, direction] → V.
-  {
+  if (!m_visibility) {  // NeRV builds its own in configure_extra()
     SubConfig sub(r, "visibility", default_visibility(),
                   "visibility network V_ψ: {position_encoding, direction_encoding, network}", docs);
     Json penc = sub.component("position_encoding", default_visibility(), "position encoding (3 dims)");
@@ -256,40 +267,45 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   if (docs) docs->insert(docs->begin() + std::ptrdiff_t(first_doc), {r.pointer(), r.docs()});
 }
 
-void Ours::allocate() {
-  const Device& device = m_device;
-  const auto& s = m_settings;
-
-  m_renderer = std::make_unique<render::VolumeRenderer>(device, s.renderer);
-  m_params = Buffer<float>(device, n_params());
-  m_grads = Buffer<float>(device, n_params());
-  m_vis_params = Buffer<float>(device, n_vis_params());
-  m_vis_grads = Buffer<float>(device, n_vis_params());
+void Model::allocate_storage(std::uint32_t n_theta, std::uint32_t n_psi, std::uint32_t grid_resolution) {
+  m_params = Buffer<float>(m_device, n_theta);
+  m_grads = Buffer<float>(m_device, n_theta);
+  m_vis_params = Buffer<float>(m_device, n_psi);
+  m_vis_grads = Buffer<float>(m_device, n_psi);
   m_grads.fill(0.0f);
   m_vis_grads.fill(0.0f);
-  const int g = static_cast<int>(s.grid_resolution);
+  const int g = static_cast<int>(grid_resolution);
   m_grid.dims = {g, g, g};
-  m_grid.sigma = Buffer<float>(device, std::size_t(g) * g * g);
+  m_grid.sigma = Buffer<float>(m_device, std::size_t(g) * g * g);
   m_grid.sigma.fill(0.0f);
+}
+
+void Ours::allocate() {
+  m_renderer = std::make_unique<render::VolumeRenderer>(m_device, m_settings.renderer);
+  allocate_storage(own_params() + n_extra_params(), m_visibility->n_params(), m_settings.grid_resolution);
   initialize(0);
 }
 
-std::uint32_t Ours::n_params() const {
+std::uint32_t Ours::own_params() const {
   return m_property->n_params() + (m_indirect ? m_indirect->n_params() : 0) +
          (m_environment ? m_environment->n_params() : 0);
 }
 
-const render::VolumeRenderer& Ours::renderer(std::uint32_t n_env_dirs) const {
-  if (n_env_dirs == 0) return *m_renderer;
-  auto& r = m_env_renderers[n_env_dirs];
+std::uint32_t Ours::queries_per_ray() const {
+  return m_settings.renderer.n_samples * (1 + (m_settings.environment.enabled ? m_settings.environment.n_dirs : 0));
+}
+
+const render::VolumeRenderer& Ours::renderer_for(std::uint32_t n_samples, std::uint32_t n_env) const {
+  if (n_env == 0 && n_samples == m_settings.renderer.n_samples) return *m_renderer;
+  auto& r = m_renderers[{n_samples, n_env}];
   if (!r) {
     render::RendererSettings rs = m_settings.renderer;
-    rs.n_env_dirs = n_env_dirs;
+    rs.n_samples = n_samples;
+    rs.n_env_dirs = n_env;
     r = std::make_unique<render::VolumeRenderer>(m_device, rs);
   }
   return *r;
 }
-std::uint32_t Ours::n_vis_params() const { return m_visibility->n_params(); }
 
 void Ours::initialize(std::uint64_t seed) {
   std::vector<float> theta(n_params()), psi(n_vis_params());
@@ -297,13 +313,14 @@ void Ours::initialize(std::uint64_t seed) {
   if (m_indirect) m_indirect->initialize_params(theta.data() + m_property->n_params(), seed + 1000);
   if (m_environment)
     m_environment->initialize_params(theta.data() + m_property->n_params() + m_indirect->n_params(), seed + 3000);
+  initialize_extra(theta.data() + own_params(), seed + 4000);
   m_visibility->initialize_params(psi.data(), seed + 2000);
   m_params.write(theta);
   m_vis_params.write(psi);
 }
 
-void Ours::prepare(OursPass& pass, std::uint32_t n_rays, std::uint32_t n_env) const {
-  const std::uint32_t n = n_rays * m_settings.renderer.n_samples;
+void Ours::prepare_branch(OursPass& pass, const Branch& branch, std::uint32_t n_rays, std::uint32_t n_env) const {
+  const std::uint32_t n = n_rays * branch.n_samples;
   const std::uint32_t n_sh = m_renderer->n_sh();
   const std::uint32_t prop_out = kPropHeads + m_settings.n_features;
   const std::uint32_t light_cols = m_settings.n_features + (m_settings.light_conditioned ? 3 : 0);
@@ -322,7 +339,7 @@ void Ours::prepare(OursPass& pass, std::uint32_t n_rays, std::uint32_t n_env) co
   matrix(pass.props_raw, prop_out);
   matrix(pass.vis_in, 6);
   matrix(pass.vis, 1);
-  const std::uint32_t prop_cols = renderer(n_env).prop_cols();
+  const std::uint32_t prop_cols = renderer_for(branch.n_samples, n_env).prop_cols();
   matrix(pass.props, prop_cols);
   matrix(pass.radiance, 3);
   matrix(pass.d_props, prop_cols);
@@ -349,28 +366,31 @@ void Ours::prepare(OursPass& pass, std::uint32_t n_rays, std::uint32_t n_env) co
     }
   }
   if (!pass.ws_property) {
-    pass.ws_property = m_property->make_workspace(m_device);
+    pass.ws_property = branch.property->make_workspace(m_device);
     if (m_indirect) pass.ws_indirect = m_indirect->make_workspace(m_device);
     pass.ws_visibility = m_visibility->make_workspace(m_device);
   }
   if (n_env > 0 && !pass.ws_env_visibility) pass.ws_env_visibility = m_visibility->make_workspace(m_device);
   if (m_environment && n_env > 0 && !pass.ws_environment) pass.ws_environment = m_environment->make_workspace(m_device);
   pass.n_rays = n_rays;
+  pass.n_samples = branch.n_samples;
   pass.n_env = n_env;
 }
 
-void Ours::forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bool training, std::uint32_t seed,
-                   const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, bool march,
-                   StageTimer* timer, const render::EnvironmentSamples* env) const {
+void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& rays, std::uint32_t n_rays,
+                          bool training, std::uint32_t seed, const nn::BatchMatrix& dirs,
+                          const nn::BatchMatrix& sh_basis, bool march, StageTimer* timer,
+                          const render::EnvironmentSamples* env, bool place_samples) const {
   if (env && !m_settings.environment.enabled)
     throw InvalidArgument("Ours::forward: an environment light was given, but the model was trained without one "
                           "(model/environment/enabled is false); render it under its point light alone");
   const std::uint32_t n_env = env ? env->size() : 0;
-  prepare(pass, n_rays, n_env);
-  const std::uint32_t spr = m_settings.renderer.n_samples;
+  if (place_samples) prepare_branch(pass, branch, n_rays, n_env);
+  const std::uint32_t spr = branch.n_samples;
   const std::uint32_t n = n_rays * spr;
   const std::uint32_t n_sh = m_renderer->n_sh();
-  m_renderer->sample(rays, n_rays, training, seed, pass.t, pass.delta, pass.positions);
+  const render::VolumeRenderer& renderer = renderer_for(spr, n_env);
+  if (place_samples) renderer.sample(rays, n_rays, training, seed, pass.t, pass.delta, pass.positions);
   const std::uint32_t light_cols = n_sh > 0 ? pass.light_in.cols() : 0;
   Buffer<float>& light_data = n_sh > 0 ? pass.light_in.data() : pass.vis_in.data();
   m_device.kernel("method.cl", "light_inputs")
@@ -378,13 +398,13 @@ void Ours::forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bo
             m_settings.light_conditioned ? light_cols : 0u, m_settings.n_features, pass.vis_in.data())
       .launch(n, 64);
   mark(timer, "sampling");
-  const nn::ConstParamSlice theta{&m_params, 0};
+  const nn::ConstParamSlice theta{&m_params, branch.theta_offset};
   const nn::ConstParamSlice theta_sh{&m_params, m_property->n_params()};
   const nn::ConstParamSlice psi{&m_vis_params, 0};
-  if (training) m_property->forward(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
-  else m_property->inference(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
+  if (training) branch.property->forward(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
+  else branch.property->inference(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
   nn::copy_columns(m_device, pass.props_raw, 0, pass.props, render::kSigma, 4);  // sigma, albedo
-  nn::copy_columns(m_device, pass.props_raw, 4, pass.props, render::kG, 1, 0.95f);
+  nn::copy_columns(m_device, pass.props_raw, 4, pass.props, render::kG, 1, g_scale());  // Bi et al.: g = 0
   mark(timer, "property net forward");
   if (march) {
     render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps, pass.vis);
@@ -433,30 +453,31 @@ void Ours::forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bo
     m_renderer->view_basis(rays, n_rays, pass.view_basis);
     basis = &pass.view_basis;
   }
-  renderer(n_env).forward(rays, n_rays, pass.t, pass.delta, pass.props, dirs, *basis, pass.radiance, pass.color,
-                          pass.transmittance, env);
+  renderer.forward(rays, n_rays, pass.t, pass.delta, pass.props, dirs, *basis, pass.radiance, pass.color,
+                   pass.transmittance, env);
   mark(timer, "lighting + compositing forward");
 }
 
-void Ours::backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMatrix& dirs,
-                    const nn::BatchMatrix& sh_basis, const Buffer<float>& d_color, StageTimer* timer,
-                    const render::EnvironmentSamples* env) {
+void Ours::backward_branch(OursPass& pass, const Branch& branch, const Buffer<float>& rays,
+                           const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, const Buffer<float>& d_color,
+                           StageTimer* timer, const render::EnvironmentSamples* env) {
   check_pass(pass, "backward");
   const std::uint32_t n_env = env ? env->size() : 0;
   if (n_env != pass.n_env)
     throw InvalidArgument("Ours::backward: give the environment samples of the forward pass (" +
                           std::to_string(pass.n_env) + " directions), got " + std::to_string(n_env));
-  const std::uint32_t spr = m_settings.renderer.n_samples;
+  const std::uint32_t spr = branch.n_samples;
   const std::uint32_t n_sh = m_renderer->n_sh();
   const bool closed = m_settings.renderer.closed_form_indirect && n_sh > 0;
-  renderer(n_env).backward(rays, pass.n_rays, pass.t, pass.delta, pass.props, dirs, closed ? pass.view_basis : sh_basis,
+  renderer_for(spr, n_env).backward(rays, pass.n_rays, pass.t, pass.delta, pass.props, dirs, closed ? pass.view_basis : sh_basis,
                            pass.radiance, pass.color, d_color, pass.d_radiance, pass.d_props, env);
+  add_property_gradients(pass, branch, rays, d_color);
   mark(timer, "lighting + compositing backward");
   // No SH head: the features receive no gradient.
   if (n_sh == 0) pass.d_props_raw.data().fill(0.0f);
   // d props_raw: sigma and albedo as they are, g through the 0.95 scale, features from the SH head.
   nn::copy_columns(m_device, pass.d_props, render::kSigma, pass.d_props_raw, 0, 4);
-  nn::copy_columns(m_device, pass.d_props, render::kG, pass.d_props_raw, 4, 1, 0.95f);
+  nn::copy_columns(m_device, pass.d_props, render::kG, pass.d_props_raw, 4, 1, g_scale());
   if (n_sh > 0) {
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.d_props, render::kSH, pass.d_indirect_raw, 0, n_sh,
                                    1.0f / m_settings.intensity_reference);
@@ -477,8 +498,8 @@ void Ours::backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMa
     }
     mark(timer, "SH head backward");
   }
-  m_property->backward(m_device, {&m_params, 0}, pass.net_pos, pass.props_raw, pass.d_props_raw, {&m_grads, 0}, false,
-                       nullptr, *pass.ws_property);
+  branch.property->backward(m_device, {&m_params, branch.theta_offset}, pass.net_pos, pass.props_raw,
+                            pass.d_props_raw, {&m_grads, branch.theta_offset}, false, nullptr, *pass.ws_property);
   mark(timer, "property net backward");
 }
 
@@ -489,7 +510,7 @@ void Ours::visibility_step(OursPass& pass, const Buffer<float>& rays, const nn::
   if (n_env != pass.n_env)
     throw InvalidArgument("Ours::visibility_step: give the environment samples of the forward pass (" +
                           std::to_string(pass.n_env) + " directions), got " + std::to_string(n_env));
-  const std::uint32_t spr = m_settings.renderer.n_samples;
+  const std::uint32_t spr = pass.n_samples;
   auto subset = [&](float fraction) {
     return std::max<std::uint32_t>(
         1, std::min(pass.n_rays, static_cast<std::uint32_t>(pass.n_rays * double(fraction) + 0.5)));
@@ -561,6 +582,44 @@ void Ours::refresh_density_grid() {
         .args(n, m_grid_props.cols(), 0u, m_grid_props.data(), m_grid.sigma, first)
         .launch(n, 64);
   }
+}
+
+// ---- the Model interface ---------------------------------------------------------------------------------
+
+namespace {
+OursPass& ours_pass(ModelPass& pass) {
+  auto* p = dynamic_cast<OursPass*>(&pass);
+  if (!p) throw InvalidArgument("this model's passes come from its make_pass()");
+  return *p;
+}
+const OursPass& ours_pass(const ModelPass& pass) { return ours_pass(const_cast<ModelPass&>(pass)); }
+}  // namespace
+
+void Ours::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& o) const {
+  OursPass& pass = ours_pass(base);
+  const auto& rs = m_settings.renderer;
+  if (!pass.basis) pass.basis = std::make_unique<render::IndirectBasis>(m_device, rs.n_dirs, rs.sh_lmax);
+  pass.basis->draw(o.seed, o.iteration);
+  forward(pass, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(), o.march_visibility,
+          o.timer, o.env);
+}
+
+const Buffer<float>& Ours::color(const ModelPass& pass, std::uint32_t i) const {
+  if (i != 0) throw InvalidArgument("Ours renders one colour per pass, asked for colour " + std::to_string(i));
+  return ours_pass(pass).color;
+}
+
+void Ours::backward(ModelPass& base, const Buffer<float>& rays, const std::vector<const Buffer<float>*>& d_colors,
+                    const PassOptions& o) {
+  OursPass& pass = ours_pass(base);
+  if (d_colors.size() != 1 || !pass.basis)
+    throw InvalidArgument("Ours::backward: give dL/dcolour of the one colour of a training render()");
+  backward(pass, rays, pass.basis->dirs(), pass.basis->basis(), *d_colors[0], o.timer, o.env);
+}
+
+void Ours::train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
+                            float weight, const PassOptions& o) {
+  visibility_step(ours_pass(pass), rays, loss, value, weight, o.timer, o.env);
 }
 
 }  // namespace relit::method

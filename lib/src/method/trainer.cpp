@@ -1,4 +1,4 @@
-// Training, checkpoints and relighting of the "Ours" model.
+// Training, checkpoints and relighting of every method (Ours and the baselines).
 #include <relit/cl/program.hpp>
 #include <relit/dataset.hpp>
 #include <relit/io/checkpoint.hpp>
@@ -172,7 +172,8 @@ void tiled_to_rows(const Device& device, const nn::BatchMatrix& m, Buffer<float>
 
 // The top-level keys of a run config (also read by the Trainer's constructor).
 Json read_run_keys(config::Reader& r) {
-  r.choice("method", "ours", {"ours"}, "the method");
+  r.choice("method", "ours", method_names(),
+           "the method: ours (DESIGN §4.3), bi (Bi et al.'s Neural Reflectance Field) or nerv (NeRV), DESIGN §4.5");
   return r.sub("model", Json::object(), "object", "the model (the /model objects below)");
 }
 
@@ -184,7 +185,7 @@ config::Docs run_config_docs() {
   read_run_keys(r);
   r.sub("training", Json::object(), "object", "training settings (/training below)");
   docs.emplace_back("", r.docs());
-  Ours::describe(docs);
+  for (const auto& m : method_names()) describe_model(m, docs);
   config::Reader tr(Json::object(), "/training", "training");
   Json loss, opt, vis_opt;
   read_training(tr, loss, opt, vis_opt);
@@ -196,6 +197,7 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
   if (!config.is_object()) throw ConfigError("", "the run config must be a JSON object");
   config::Reader r(config, "", "run");
   const Json model = read_run_keys(r);
+  const std::string method = r.resolved().value("method", "ours");
   Json loss, opt, vis_opt;
   {
     config::Reader tr(r.sub("training", Json::object(), "object", "training settings"), r.pointer("training"), "training");
@@ -226,7 +228,7 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
                             "; leave it out (relit sets it from the dataset)");
     if (!given) model_config["environment"]["enabled"] = has_env;
   }
-  m_model = std::make_unique<Ours>(device, model_config, "/model");
+  m_model = create_model(device, method, model_config, "/model");
   r.set_resolved("model", m_model->hyperparams());
   r.finish();
   m_config = r.resolved();
@@ -240,14 +242,12 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
     const std::string split = desc.splits.count("val") ? "val" : "test";
     m_val = load_split(dataset_dir, split, m_settings.validation_views);
   }
-  const auto& rs = m_model->settings().renderer;
-  m_indirect = std::make_unique<render::IndirectBasis>(device, rs.n_dirs, rs.sh_lmax);
   if (train.environment) {
-    m_env = std::make_unique<render::EnvironmentSamples>(device, *train.environment,
-                                                         m_model->settings().environment.n_dirs_training);
-    log_info("environment light " + train.environment->file() + ": " +
-             std::to_string(m_model->settings().environment.n_dirs_training) + " directions per step");
+    m_env = std::make_unique<render::EnvironmentSamples>(device, *train.environment, m_model->env_dirs_training());
+    log_info("environment light " + train.environment->file() + ": " + std::to_string(m_model->env_dirs_training()) +
+             " directions per step");
   }
+  m_pass = m_model->make_pass();
 
   m_model->initialize(m_settings.seed);
   m_optimizer->allocate(device, m_model->n_params());
@@ -255,9 +255,10 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
   const std::uint32_t b = m_settings.batch_rays;
   m_ray_buf = Buffer<float>(device, std::size_t(b) * render::kRayFloats);
   m_targets = Buffer<float>(device, 3 * std::size_t(b));
-  m_d_color = Buffer<float>(device, 3 * std::size_t(b));
+  for (std::uint32_t i = 0; i < m_model->n_colors(); ++i) m_d_colors.emplace_back(device, 3 * std::size_t(b));
   m_pixel_ids = Buffer<std::uint32_t>(device, b);
   m_loss_value = Buffer<float>(device, 1);
+  m_aux_loss_value = Buffer<float>(device, 1);
   m_vis_loss_value = Buffer<float>(device, 1);
   m_guard = Buffer<float>(device, 1);
   m_skipped = Buffer<std::uint32_t>(device, 1);
@@ -282,26 +283,36 @@ void Trainer::step() {
   const std::uint32_t seed = step_seed(s.seed, m_step);
   StageTimer* timer = m_timer.enabled() ? &m_timer : nullptr;
   if (timer) timer->start();
-  if (m_step % m_model->settings().grid_refresh == 0) m_model->refresh_density_grid();
+  if (m_step % m_model->grid_refresh_every() == 0) m_model->refresh_density_grid();
   if (timer) timer->mark("density grid refresh");
   m_rays->training_batch(b, s.seed, static_cast<std::uint32_t>(m_step), m_ray_buf, m_targets, m_pixel_ids);
-  m_indirect->draw(s.seed, static_cast<std::uint32_t>(m_step));
   if (m_env) {
     m_env->draw(s.seed, static_cast<std::uint32_t>(m_step));
     m_env->fill_background(m_ray_buf, b);
   }
-  m_model->forward(m_pass, m_ray_buf, b, true, seed, m_indirect->dirs(), m_indirect->basis(), false, timer, m_env.get());
-  // Render loss on the pixel colours.
-  rows_to_tiled(m_device, m_pass.color, b, m_color_t);
+  PassOptions o;
+  o.training = true;
+  o.seed = s.seed;
+  o.iteration = static_cast<std::uint32_t>(m_step);
+  o.jitter_seed = seed;
+  o.env = m_env.get();
+  o.timer = timer;
+  m_model->render(*m_pass, m_ray_buf, b, o);
+  // Render loss on the pixel colours (every colour the model renders; the last is its image).
   rows_to_tiled(m_device, m_targets, b, m_target_t);
   m_d_color_t.resize(b);
-  m_loss->evaluate(m_device, m_color_t, m_target_t, m_d_color_t, m_loss_value);
-  tiled_to_rows(m_device, m_d_color_t, m_d_color);
+  std::vector<const Buffer<float>*> d_colors;
+  const std::uint32_t n_colors = m_model->n_colors();
+  for (std::uint32_t i = 0; i < n_colors; ++i) {
+    rows_to_tiled(m_device, m_model->color(*m_pass, i), b, m_color_t);
+    m_loss->evaluate(m_device, m_color_t, m_target_t, m_d_color_t, i + 1 == n_colors ? m_loss_value : m_aux_loss_value);
+    tiled_to_rows(m_device, m_d_color_t, m_d_colors[i]);
+    d_colors.push_back(&m_d_colors[i]);
+  }
   if (timer) timer->mark("render loss");
-  m_model->backward(m_pass, m_ray_buf, m_indirect->dirs(), m_indirect->basis(), m_d_color, timer, m_env.get());
+  m_model->backward(*m_pass, m_ray_buf, d_colors, o);
   // Visibility loss against the density march (constants: θ gets nothing), backward into ψ only.
-  m_model->visibility_step(m_pass, m_ray_buf, *m_vis_loss, m_vis_loss_value, s.visibility_loss_weight, timer,
-                           m_env.get());
+  m_model->train_visibility(*m_pass, m_ray_buf, *m_vis_loss, m_vis_loss_value, s.visibility_loss_weight, o);
   m_device.kernel("method.cl", "step_guard").args(m_loss_value, m_vis_loss_value, m_guard, m_skipped).launch(1, 1);
   m_optimizer->step(m_model->params(), m_model->grads());
   m_vis_optimizer->step(m_model->vis_params(), m_model->vis_grads());
@@ -448,11 +459,12 @@ void Trainer::load_checkpoint(const std::string& path) {
   m_val_psnr = v.is_number() ? v.get<double>() : std::numeric_limits<double>::quiet_NaN();
 }
 
-std::unique_ptr<Ours> load_model(const Device& device, const std::string& path) {
+std::unique_ptr<Model> load_model(const Device& device, const std::string& path) {
   const io::Checkpoint c = io::load_checkpoint(path);
   if (!c.header.contains("config") || !c.header["config"].contains("model"))
     throw IOError(path + ": not a relit run checkpoint (no model config in its header)");
-  auto model = std::make_unique<Ours>(device, c.header["config"]["model"], "/model");
+  const std::string method = c.header["config"].value("method", "ours");
+  auto model = create_model(device, method, c.header["config"]["model"], "/model");
   get(c, "theta", model->params(), path);
   get(c, "psi", model->vis_params(), path);
   get(c, "density_grid", model->density_grid().sigma, path);
@@ -461,43 +473,45 @@ std::unique_ptr<Ours> load_model(const Device& device, const std::string& path) 
 
 // ---- relighting --------------------------------------------------------------------------------------------
 
-Image render_image(const Ours& model, const Camera& camera, const PointLight& light, const RenderSettings& settings,
+Image render_image(const Model& model, const Camera& camera, const PointLight& light, const RenderSettings& settings,
                    const ProgressCallback& progress) {
   camera.validate();
   light.validate();
   if (settings.tile_rays == 0) throw InvalidArgument("render_image: tile_rays must be positive");
-  const std::string vis = settings.visibility.empty() ? model.settings().inference_visibility : settings.visibility;
+  const std::string vis = settings.visibility.empty() ? model.inference_visibility() : settings.visibility;
   if (vis != "network" && vis != "march")
     throw InvalidArgument("render_image: visibility must be \"network\" or \"march\", got \"" + vis + "\"");
   const Device& device = model.device();
   const std::uint32_t total = static_cast<std::uint32_t>(camera.width) * camera.height;
   std::uint32_t tile = std::min(settings.tile_rays, total);
-  const auto& rs = model.settings().renderer;
-  render::IndirectBasis basis(device, rs.n_dirs, rs.sh_lmax);
   std::unique_ptr<render::EnvironmentSamples> env;
   if (settings.environment) {
-    if (!model.settings().environment.enabled)
+    if (!model.has_environment())
       throw InvalidArgument("render_image: the model was trained without an environment light; render it under "
                             "its point light alone (no environment)");
-    const std::uint32_t n_env = model.settings().environment.n_dirs;
-    env = std::make_unique<render::EnvironmentSamples>(device, *settings.environment, n_env);
-    // N_e visibility queries per sample: keep a tile's queries near 2^19.
-    tile = std::min(tile, std::max<std::uint32_t>(16, (1u << 19) / (rs.n_samples * n_env)));
+    env = std::make_unique<render::EnvironmentSamples>(device, *settings.environment, model.env_dirs());
   }
-  OursPass pass;
+  // Keep a tile's network queries near 2^19 (N_e visibility queries per sample with an environment, ...).
+  tile = std::min(tile, std::max<std::uint32_t>(16, (1u << 19) / model.queries_per_ray()));
+  const auto pass = model.make_pass();
   Buffer<float> rays(device, std::size_t(tile) * render::kRayFloats);
   Image out(camera.width, camera.height, 3);
   ProgressTracker tracker(progress, total, "rays");
   for (std::uint32_t first = 0, k = 0; first < total; first += tile, ++k) {
     const std::uint32_t n = std::min(tile, total - first);
     render::image_rays(device, camera, light, first, n, rays);
-    basis.draw(settings.seed, k);
     if (env) {
       env->draw(settings.seed, k);
       env->fill_background(rays, n);
     }
-    model.forward(pass, rays, n, false, settings.seed, basis.dirs(), basis.basis(), vis == "march", nullptr, env.get());
-    pass.color.read(out.pixels.data() + std::size_t(first) * 3, 3 * std::size_t(n));
+    PassOptions o;
+    o.seed = settings.seed;
+    o.iteration = k;
+    o.jitter_seed = settings.seed;
+    o.march_visibility = vis == "march";
+    o.env = env.get();
+    model.render(*pass, rays, n, o);
+    model.color(*pass, model.n_colors() - 1).read(out.pixels.data() + std::size_t(first) * 3, 3 * std::size_t(n));
     tracker.update(first + n);
   }
   return out;

@@ -7,7 +7,7 @@
 //   out/<split>/<name>.png|.exr    every prediction (sRGB preview and linear EXR)
 #pragma once
 
-#include <relit/method/ours.hpp>
+#include <relit/method/model.hpp>
 #include <relit/progress.hpp>
 #include <relit/report.hpp>
 
@@ -25,7 +25,7 @@ struct EvalOptions {
 
 /// Renders every view of the splits with `model`, compares with the dataset's images, and writes the report
 /// into `out_dir` (created; report::write_report). `meta` is stored in metrics.json. Progress counts views.
-std::vector<report::ViewResult> evaluate(const Ours& model, const std::string& dataset_dir, const std::string& out_dir,
+std::vector<report::ViewResult> evaluate(const Model& model, const std::string& dataset_dir, const std::string& out_dir,
                                          const EvalOptions& options = {}, const Json& meta = Json::object(),
                                          const ProgressCallback& progress = {});
 

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <relit/config.hpp>
+#include <relit/method/model.hpp>
 #include <relit/nn/loss.hpp>
 #include <relit/nn/module.hpp>
 #include <relit/nn/network_with_encoding.hpp>
@@ -55,28 +56,9 @@ struct OursSettings {
   EnvironmentSettings environment;
 };
 
-/// Per-stage timing of a training step, for profiling: when enabled, mark() waits for the device and adds the
-/// time since the previous mark to `stage`. Disabled (the default) it does nothing, so steps stay asynchronous.
-class StageTimer {
- public:
-  void enable(const Device& device);
-  bool enabled() const { return m_enabled; }
-  void start();
-  void mark(const std::string& stage);
-  /// Seconds per stage, in first-marked order.
-  const std::vector<std::pair<std::string, double>>& seconds() const { return m_seconds; }
-  void clear() { m_seconds.clear(); }
-
- private:
-  bool m_enabled = false;
-  Device m_device;
-  double m_last = 0;
-  std::vector<std::pair<std::string, double>> m_seconds;
-};
-
 /// Scratch matrices of one pass over a batch of rays; reused across iterations (no allocation once sized).
-struct OursPass {
-  std::uint32_t n_rays = 0;
+struct OursPass : ModelPass {
+  std::uint32_t n_samples = 0;  ///< samples per ray of the last forward pass
   Buffer<float> t, delta, color, transmittance;
   nn::BatchMatrix positions, net_pos, props_raw, light_in, indirect_raw, vis_in, vis, props, radiance;
   nn::BatchMatrix d_props, d_radiance, d_props_raw, d_indirect_raw, d_light_in;
@@ -88,9 +70,10 @@ struct OursPass {
   nn::BatchMatrix env_vis_in, env_vis, env_raw, d_env_raw, d_env_in, env_march, env_positions_sub, env_target,
       point_target;
   std::unique_ptr<nn::Workspace> ws_property, ws_indirect, ws_visibility, ws_env_visibility, ws_environment;
+  std::unique_ptr<render::IndirectBasis> basis;  // the K directions of render(), drawn per iteration
 };
 
-class Ours {
+class Ours : public Model {
  public:
   /// Builds the networks from the "model" config object (at JSON pointer `pointer`); unknown keys and bad
   /// values are ConfigErrors naming the pointer.
@@ -98,25 +81,16 @@ class Ours {
   /// Every key of the model config, per JSON object (for docs/config.md).
   static void describe(config::Docs& docs);
 
+  std::string method() const override { return "ours"; }
   const OursSettings& settings() const { return m_settings; }
-  /// The resolved "model" config: building from it gives the same model.
-  const Json& hyperparams() const { return m_resolved; }
   /// The renderer without environment light; renderer(N_e) the one for N_e environment directions.
   const render::VolumeRenderer& renderer() const { return *m_renderer; }
-  const render::VolumeRenderer& renderer(std::uint32_t n_env_dirs) const;
-  const Device& device() const { return m_device; }
+  const render::VolumeRenderer& renderer(std::uint32_t n_env_dirs) const {
+    return renderer_for(m_settings.renderer.n_samples, n_env_dirs);
+  }
 
   /// θ: [property net | SH head | environment head]; ψ: the visibility net.
-  std::uint32_t n_params() const;
-  std::uint32_t n_vis_params() const;
-  Buffer<float>& params() { return m_params; }
-  Buffer<float>& vis_params() { return m_vis_params; }
-  const Buffer<float>& params() const { return m_params; }
-  const Buffer<float>& vis_params() const { return m_vis_params; }
-  Buffer<float>& grads() { return m_grads; }
-  Buffer<float>& vis_grads() { return m_vis_grads; }
-  /// Re-initialises both parameter buffers deterministically from `seed`.
-  void initialize(std::uint64_t seed);
+  void initialize(std::uint64_t seed) override;
 
   const nn::NetworkWithInputEncoding& property_network() const { return *m_property; }
   const nn::NetworkWithInputEncoding& indirect_network() const { return *m_indirect; }
@@ -125,7 +99,9 @@ class Ours {
   const nn::NetworkWithInputEncoding* environment_network() const { return m_environment.get(); }
 
   /// Sizes the pass for `n_rays` rays and `n_env` environment directions (allocates only when it grows).
-  void prepare(OursPass& pass, std::uint32_t n_rays, std::uint32_t n_env = 0) const;
+  void prepare(OursPass& pass, std::uint32_t n_rays, std::uint32_t n_env = 0) const {
+    prepare_branch(pass, main_branch(), n_rays, n_env);
+  }
 
   /// Samples the rays (sample positions, jittered when training), runs the networks and assembles the
   /// renderer's property matrix. `training` keeps the activations for backward(); `march_visibility`
@@ -134,13 +110,17 @@ class Ours {
   /// environment; null renders under the point light alone (S_env = 0, c_env = 0).
   void forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bool training, std::uint32_t seed,
                const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, bool march_visibility = false,
-               StageTimer* timer = nullptr, const render::EnvironmentSamples* env = nullptr) const;
+               StageTimer* timer = nullptr, const render::EnvironmentSamples* env = nullptr) const {
+    forward_branch(pass, main_branch(), rays, n_rays, training, seed, dirs, sh_basis, march_visibility, timer, env, true);
+  }
 
   /// Given dL/dcolour (n_rays x 3, rows): writes dL/dθ into grads() (overwriting). The visibility network
   /// gets nothing (gradient isolation). `env` as given to forward().
   void backward(OursPass& pass, const Buffer<float>& rays, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis,
                 const Buffer<float>& d_color, StageTimer* timer = nullptr,
-                const render::EnvironmentSamples* env = nullptr);
+                const render::EnvironmentSamples* env = nullptr) {
+    backward_branch(pass, main_branch(), rays, dirs, sh_basis, d_color, timer, env);
+  }
 
   /// One visibility-network gradient: on the samples of the pass's first visibility_fraction of rays, the
   /// loss of V_ψ against the transmittance of the density grid toward the light (constants, so θ gets
@@ -152,22 +132,69 @@ class Ours {
                        const render::EnvironmentSamples* env = nullptr);
 
   /// Re-evaluates the density grid from the current θ (the property net's σ at the voxel centres).
-  void refresh_density_grid();
-  const render::DensityGrid& density_grid() const { return m_grid; }
-  render::DensityGrid& density_grid() { return m_grid; }
+  void refresh_density_grid() override;
+  std::uint32_t grid_refresh_every() const override { return m_settings.grid_refresh; }
 
- private:
-  Ours() = default;
+  bool has_environment() const override { return m_settings.environment.enabled; }
+  std::uint32_t env_dirs() const override { return m_settings.environment.n_dirs; }
+  std::uint32_t env_dirs_training() const override { return m_settings.environment.n_dirs_training; }
+  std::string inference_visibility() const override { return m_settings.inference_visibility; }
+  std::uint32_t queries_per_ray() const override;
+
+  std::unique_ptr<ModelPass> make_pass() const override { return std::make_unique<OursPass>(); }
+  void render(ModelPass& pass, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& options) const override;
+  const Buffer<float>& color(const ModelPass& pass, std::uint32_t i) const override;
+  void backward(ModelPass& pass, const Buffer<float>& rays, const std::vector<const Buffer<float>*>& d_colors,
+                const PassOptions& options) override;
+  void train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
+                        float weight, const PassOptions& options) override;
+
+ protected:
+  /// What the model varies for the methods built on it (NeuralReflectanceField, NeRV).
+  enum class Variant { ours, bi, nerv };
+  /// A derived method's constructor calls configure() and allocate() itself (so that its hooks dispatch).
+  Ours(const Device& device, Variant variant) : Model(device), m_variant(variant) {}
+  explicit Ours(Variant variant) : m_variant(variant) {}  // describe() only
+  /// Reads the derived method's own keys of the "model" object (before unknown keys are rejected).
+  virtual void configure_extra(config::Reader& r, config::Docs* docs) { (void)r, (void)docs; }
+  /// Reads the derived method's own keys of the "renderer" object.
+  virtual void configure_renderer_extra(config::Reader& r) { (void)r; }
+  /// HG g = g_scale() tanh(raw): 0.95, or 0 for Bi et al.'s isotropic phase.
+  float g_scale() const { return m_variant == Variant::bi ? 0.0f : 0.95f; }
+  /// A property network with its θ offset and samples per ray (Bi et al. has a coarse and a fine one).
+  struct Branch {
+    const nn::NetworkWithInputEncoding* property = nullptr;
+    std::uint32_t theta_offset = 0;
+    std::uint32_t n_samples = 64;
+  };
+  Branch main_branch() const { return {m_property.get(), 0, m_settings.renderer.n_samples}; }
+  const render::VolumeRenderer& renderer_for(std::uint32_t n_samples, std::uint32_t n_env) const;
+  void prepare_branch(OursPass& pass, const Branch& branch, std::uint32_t n_rays, std::uint32_t n_env) const;
+  /// forward() for `branch`; with `place_samples` false the pass's t, delta and positions are given.
+  void forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& rays, std::uint32_t n_rays, bool training,
+                      std::uint32_t seed, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, bool march,
+                      StageTimer* timer, const render::EnvironmentSamples* env, bool place_samples) const;
+  void backward_branch(OursPass& pass, const Branch& branch, const Buffer<float>& rays, const nn::BatchMatrix& dirs,
+                       const nn::BatchMatrix& sh_basis, const Buffer<float>& d_color, StageTimer* timer,
+                       const render::EnvironmentSamples* env);
+  /// Called by backward_branch() between the renderer's backward pass and the networks': a method may add
+  /// gradients of its own terms to dL/dproperties.
+  virtual void add_property_gradients(OursPass& pass, const Branch& branch, const Buffer<float>& rays,
+                                      const Buffer<float>& d_color) {
+    (void)pass, (void)branch, (void)rays, (void)d_color;
+  }
+  /// θ parameters after Ours' own (Bi et al.'s coarse network); initialize() calls initialize_extra on them.
+  virtual std::uint32_t n_extra_params() const { return 0; }
+  virtual void initialize_extra(float* theta, std::uint64_t seed) const { (void)theta, (void)seed; }
+  /// Builds the networks, then allocate() sizes θ = Ours' networks + n_extra_params().
   void configure(const Json& config, const std::string& pointer, config::Docs* docs);
   void allocate();
-  Device m_device;
+  std::uint32_t own_params() const;
+  Variant m_variant = Variant::ours;
   OursSettings m_settings;
-  Json m_resolved;
   std::unique_ptr<render::VolumeRenderer> m_renderer;
-  mutable std::map<std::uint32_t, std::unique_ptr<render::VolumeRenderer>> m_env_renderers;  // by N_e
+  mutable std::map<std::pair<std::uint32_t, std::uint32_t>, std::unique_ptr<render::VolumeRenderer>> m_renderers;
   std::unique_ptr<nn::NetworkWithInputEncoding> m_property, m_indirect, m_visibility, m_environment;
-  Buffer<float> m_params, m_grads, m_vis_params, m_vis_grads;
-  render::DensityGrid m_grid;
   nn::BatchMatrix m_grid_positions, m_grid_props;
   std::unique_ptr<nn::Workspace> m_grid_ws;
 };

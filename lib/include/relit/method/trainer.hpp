@@ -6,12 +6,14 @@
 //   trainer.run(3000, [](const TrainStats& s) { ...; return true; });  // every log_every steps
 //   relit::Image img = relit::method::render_image(trainer.model(), camera, light);
 //
-// A run config is {"method": "ours", "model": {...}, "training": {...}}; docs/method.md describes it and
+// A run config is {"method": "ours" | "bi" | "nerv", "model": {...}, "training": {...}}; docs/method.md describes it and
 // docs/config.md lists every key. A step enqueues its work only (no host synchronisation) except at the
 // periodic loss readback (log_every), validation and checkpoints.
 #pragma once
 
-#include <relit/method/ours.hpp>
+#include <relit/method/model.hpp>
+#include <relit/render/volume_renderer.hpp>
+#include <relit/render/environment.hpp>
 #include <relit/io/image.hpp>
 #include <relit/nn/loss.hpp>
 #include <relit/nn/optimizer.hpp>
@@ -29,7 +31,7 @@
 
 namespace relit::method {
 
-/// The names of the preset configs ("fast", "paper").
+/// The names of the preset configs ("fast", "paper", and per baseline "bi-fast", "nerv-paper", ...).
 std::vector<std::string> preset_names();
 /// A preset run config by name; throws InvalidArgument listing the presets for an unknown name.
 Json preset(const std::string& name);
@@ -123,24 +125,24 @@ class Trainer {
   std::uint64_t steps() const { return m_step; }
   const Json& config() const { return m_config; }
   const TrainingSettings& settings() const { return m_settings; }
-  Ours& model() { return *m_model; }
-  const Ours& model() const { return *m_model; }
+  Model& model() { return *m_model; }
+  const Model& model() const { return *m_model; }
 
  private:
   void write_log(const TrainStats& s) const;
   Device m_device;
   Json m_config;
   TrainingSettings m_settings;
-  std::unique_ptr<Ours> m_model;
+  std::unique_ptr<Model> m_model;
   std::unique_ptr<nn::Loss> m_loss, m_vis_loss;
   std::unique_ptr<nn::Optimizer> m_optimizer, m_vis_optimizer;
   std::unique_ptr<render::RaySource> m_rays;
-  std::unique_ptr<render::IndirectBasis> m_indirect;
   std::unique_ptr<render::EnvironmentSamples> m_env;  // 'env+point' datasets: the training step's N_e directions
   DatasetSplit m_val;
   std::string m_out;
-  OursPass m_pass;
-  Buffer<float> m_ray_buf, m_targets, m_d_color, m_loss_value, m_vis_loss_value, m_guard;
+  std::unique_ptr<ModelPass> m_pass;
+  std::vector<Buffer<float>> m_d_colors;  // dL/dcolour per colour of the model (rows)
+  Buffer<float> m_ray_buf, m_targets, m_loss_value, m_aux_loss_value, m_vis_loss_value, m_guard;
   Buffer<std::uint32_t> m_pixel_ids, m_skipped;
   nn::BatchMatrix m_color_t, m_target_t, m_d_color_t;
   std::uint64_t m_step = 0;
@@ -160,10 +162,10 @@ struct RenderSettings {
 
 /// Renders `camera`'s image under `light` with the model: linear RGB (3 channels), in tiles, with progress
 /// counted in rays.
-Image render_image(const Ours& model, const Camera& camera, const PointLight& light, const RenderSettings& settings = {},
+Image render_image(const Model& model, const Camera& camera, const PointLight& light, const RenderSettings& settings = {},
                    const ProgressCallback& progress = {});
 
 /// Builds the model stored in a checkpoint (its config and parameters; the dataset is not needed).
-std::unique_ptr<Ours> load_model(const Device& device, const std::string& checkpoint_path);
+std::unique_ptr<Model> load_model(const Device& device, const std::string& checkpoint_path);
 
 }  // namespace relit::method

@@ -1,0 +1,22 @@
+// The method registry: the run config's "method" key → the model class.
+#include <relit/error.hpp>
+#include <relit/method/ours.hpp>
+
+namespace relit::method {
+
+std::vector<std::string> method_names() { return {"ours"}; }
+
+std::unique_ptr<Model> create_model(const Device& device, const std::string& method, const Json& config,
+                                    const std::string& pointer) {
+  if (method == "ours") return std::make_unique<Ours>(device, config, pointer);
+  std::string names;
+  for (const auto& m : method_names()) names += (names.empty() ? "" : ", ") + m;
+  throw ConfigError("/method", "unknown method '" + method + "'; valid methods: " + names);
+}
+
+void describe_model(const std::string& method, config::Docs& docs) {
+  if (method == "ours") return Ours::describe(docs);
+  throw InvalidArgument("describe_model: unknown method '" + method + "'");
+}
+
+}  // namespace relit::method
