@@ -348,10 +348,13 @@ TEST(Method, PresetsBuildAndResolveToThemselves) {
   for (const auto& name : names) {
     SCOPED_TRACE(name);
     const Json cfg = method::preset(name);
-    method::Ours model(dev, cfg.at("model"));
-    method::Ours again(dev, model.hyperparams());
-    EXPECT_EQ(again.hyperparams(), model.hyperparams());
-    EXPECT_EQ(again.n_params(), model.n_params());
+    const std::string m = cfg.value("method", "ours");
+    EXPECT_EQ(name.rfind(m == "ours" ? "" : m + "-", 0), 0u) << "a baseline's preset is named after its method";
+    const auto model = method::create_model(dev, m, cfg.at("model"));
+    const auto again = method::create_model(dev, m, model->hyperparams());
+    EXPECT_EQ(model->method(), m);
+    EXPECT_EQ(again->hyperparams(), model->hyperparams());
+    EXPECT_EQ(again->n_params(), model->n_params());
   }
 }
 

@@ -12,7 +12,9 @@
 #include <relit/io/file.hpp>
 #include <relit/io/image.hpp>
 #include <relit/log.hpp>
+#include <relit/method/model.hpp>
 #include <relit/method/ours.hpp>
+#include <relit/method/bi.hpp>
 #include <relit/method/evaluate.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/metrics.hpp>

@@ -77,12 +77,18 @@ std::string config_reference_markdown() {
   describe(out, nn::optimizers(), "Optimizers", "Optimisers update a model's flat parameter buffer.");
   out << "## Run config\n\n"
          "`relit train --config FILE.json` and `relit.Trainer(config=...)` take a run config: `{\"method\", "
-         "\"model\", \"training\"}`. The presets `fast` and `paper` (configs/*.json) are complete examples; "
+         "\"model\", \"training\"}`. The presets (configs/*.json: `fast` and `paper` for Ours, `bi-fast`, "
+         "`bi-paper`, `nerv-fast`, `nerv-paper` for the baselines) are complete examples; "
          "a key left out takes the default below. Keys of type *component* take an encoding, network, loss or "
          "optimizer object from the sections above (the model sets the networks' output heads itself). See "
-         "docs/method.md.\n\n";
+         "docs/method.md and docs/baselines.md. The `/model` keys depend on the method.\n\n";
   for (const auto& [pointer, docs] : method::run_config_docs()) {
-    out << "### `" << (pointer.empty() ? "/" : pointer) << "`\n\n"
+    const auto mark = pointer.find(" [");  // "/model [bi]": a key of method bi's model
+    if (mark == std::string::npos) out << "### `" << (pointer.empty() ? "/" : pointer) << "`\n\n";
+    else
+      out << "### `" << pointer.substr(0, mark) << "` (method `" << pointer.substr(mark + 2, pointer.size() - mark - 3)
+          << "`)\n\n";
+    out
         << "| key | type | default | valid values | description |\n|---|---|---|---|---|\n";
     for (const auto& d : docs)
       out << "| `" << d.key << "` | " << d.type << " | " << cell(d.type == "object" ? "(object below)" : default_text(d.default_value))

@@ -168,7 +168,7 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
                                     "visibility when rendering: the network (as the paper) or a density-grid march");
   Json env_network, env_resolved;
   {
-    SubConfig sub(r, "environment", default_environment(),
+    SubConfig sub(r, "environment", m_variant == Variant::ours ? default_environment() : Json::object(),
                   "the environment light of 'env+point' data: S_env and the position-only SH head c_env", docs);
     auto& e = s.environment;
     e.enabled = sub.reader.boolean("enabled", false,

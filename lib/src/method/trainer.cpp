@@ -185,7 +185,12 @@ config::Docs run_config_docs() {
   read_run_keys(r);
   r.sub("training", Json::object(), "object", "training settings (/training below)");
   docs.emplace_back("", r.docs());
-  for (const auto& m : method_names()) describe_model(m, docs);
+  // Each method's "model" keys, marked with the method ("/model [bi]") for the reference.
+  for (const auto& m : method_names()) {
+    const std::size_t first = docs.size();
+    describe_model(m, docs);
+    for (std::size_t i = first; i < docs.size(); ++i) docs[i].first += " [" + m + "]";
+  }
   config::Reader tr(Json::object(), "/training", "training");
   Json loss, opt, vis_opt;
   read_training(tr, loss, opt, vis_opt);

@@ -1,0 +1,129 @@
+// Bi et al.'s Neural Reflectance Field (seed appendix D): coarse and fine networks joined by hierarchical
+// sampling, on the renderer and visibility machinery of Ours.
+#include <relit/cl/program.hpp>
+#include <relit/method/bi.hpp>
+#include <relit/nn/registry.hpp>
+
+namespace relit::method {
+
+namespace {
+
+Json default_coarse() {
+  return {{"encoding", {{"type", "HashGrid"}, {"n_levels", 12}, {"n_features_per_level", 2}, {"log2_hashmap_size", 17},
+                        {"base_resolution", 16}, {"per_level_scale", 1.32}}},
+          {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}}};
+}
+
+BiPass& bi_pass(ModelPass& pass) {
+  auto* p = dynamic_cast<BiPass*>(&pass);
+  if (!p) throw InvalidArgument("NeuralReflectanceField: give a pass of its make_pass()");
+  return *p;
+}
+
+}  // namespace
+
+NeuralReflectanceField::NeuralReflectanceField(const Device& device, const Json& config, const std::string& pointer)
+    : Ours(device, Variant::bi) {
+  configure(config, pointer, nullptr);
+  allocate();
+}
+
+void NeuralReflectanceField::describe(config::Docs& docs) {
+  NeuralReflectanceField m(Variant::bi);
+  m.configure(Json::object(), "/model", &docs);
+}
+
+void NeuralReflectanceField::configure_renderer_extra(config::Reader& r) {
+  m_n_fine = r.uint("n_fine_samples", 128, 16, 1024,
+                    "importance samples per ray drawn from the coarse weights (a multiple of 16); the fine network "
+                    "sees these and the coarse ones");
+  if (m_n_fine % 16) r.fail("n_fine_samples", "must be a multiple of 16, got " + std::to_string(m_n_fine));
+}
+
+void NeuralReflectanceField::configure_extra(config::Reader& r, config::Docs* docs) {
+  // The coarse network: the same heads as the fine one ("property"), on the coarse samples.
+  const std::string ptr = r.pointer("coarse");
+  config::Reader sub(r.sub("coarse", default_coarse(), "object",
+                           "the coarse network {encoding, network} (\"property\" is the fine network)"),
+                     ptr, "coarse");
+  const Json enc = sub.sub("encoding", default_coarse()["encoding"], "component", "position encoding (3 dims)");
+  Json net = sub.sub("network", default_coarse()["network"], "component", "the MLP; its heads are set by the model");
+  sub.finish();
+  if (docs) docs->emplace_back(sub.pointer(), sub.docs());
+  if (!net.is_object()) throw ConfigError(ptr + "/network", "must be a network object, got " + net.dump());
+  for (const char* key : {"output_heads", "output_activation"})
+    if (net.contains(key)) throw ConfigError(ptr + "/network/" + key, "is set by the model; remove it");
+  const Json heads = m_property->network().hyperparams()["output_heads"];
+  net["output_heads"] = heads;
+  auto e = nn::create_encoding(enc, 3, ptr + "/encoding");
+  auto n = nn::create_network(net, e->n_output_dims(), m_property->n_output_dims(), ptr + "/network");
+  m_coarse = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
+  Json res = m_coarse->hyperparams();
+  res["network"].erase("output_heads");
+  res["network"].erase("output_activation");
+  r.set_resolved("coarse", res);
+}
+
+void NeuralReflectanceField::initialize_extra(float* theta, std::uint64_t seed) const {
+  m_coarse->initialize_params(theta, seed);
+}
+
+std::uint32_t NeuralReflectanceField::queries_per_ray() const {
+  const std::uint32_t per_sample = 1 + (has_environment() ? env_dirs() : 0);
+  return (2 * n_coarse_samples() + m_n_fine) * per_sample;
+}
+
+void NeuralReflectanceField::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays,
+                                    const PassOptions& o) const {
+  BiPass& pass = bi_pass(base);
+  const auto& rs = m_settings.renderer;
+  if (!pass.basis) pass.basis = std::make_unique<render::IndirectBasis>(m_device, rs.n_dirs, rs.sh_lmax);
+  pass.basis->draw(o.seed, o.iteration);
+  const Branch coarse = coarse_branch(), fine = fine_branch();
+  forward_branch(pass.coarse, coarse, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(),
+                 o.march_visibility, o.timer, o.env, true);
+  prepare_branch(pass, fine, n_rays, pass.coarse.n_env);
+  if (pass.t_fine_only.size() < std::size_t(n_rays) * m_n_fine)
+    pass.t_fine_only = Buffer<float>(m_device, std::size_t(n_rays) * m_n_fine);
+  sample_fine(m_device, rays, n_rays, coarse.n_samples, pass.coarse.t, pass.coarse.delta, pass.coarse.props, m_n_fine,
+              o.training, o.jitter_seed ^ 0x5bd1e995u, pass.t_fine_only, pass.t, pass.delta, pass.positions);
+  if (o.timer) o.timer->mark("hierarchical sampling");
+  forward_branch(pass, fine, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(),
+                 o.march_visibility, o.timer, o.env, false);
+}
+
+const Buffer<float>& NeuralReflectanceField::color(const ModelPass& base, std::uint32_t i) const {
+  const BiPass& pass = bi_pass(const_cast<ModelPass&>(base));
+  if (i > 1) throw InvalidArgument("Bi et al. renders two colours (coarse 0, fine 1), asked for " + std::to_string(i));
+  return i == 0 ? pass.coarse.color : pass.color;
+}
+
+void NeuralReflectanceField::backward(ModelPass& base, const Buffer<float>& rays,
+                                      const std::vector<const Buffer<float>*>& d_colors, const PassOptions& o) {
+  BiPass& pass = bi_pass(base);
+  if (d_colors.size() != 2 || !pass.basis)
+    throw InvalidArgument("NeuralReflectanceField::backward: give dL/dcolour of the coarse and the fine image of a "
+                          "training render()");
+  backward_branch(pass, fine_branch(), rays, pass.basis->dirs(), pass.basis->basis(), *d_colors[1], o.timer, o.env);
+  backward_branch(pass.coarse, coarse_branch(), rays, pass.basis->dirs(), pass.basis->basis(), *d_colors[0], o.timer,
+                  o.env);
+}
+
+void sample_fine(const Device& device, const Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t n_coarse,
+                 const Buffer<float>& t_coarse, const Buffer<float>& delta_coarse, const nn::BatchMatrix& coarse_props,
+                 std::uint32_t n_fine, bool jitter, std::uint32_t seed, Buffer<float>& t_fine_only, Buffer<float>& t,
+                 Buffer<float>& delta, nn::BatchMatrix& positions) {
+  const std::size_t n_all = std::size_t(n_rays) * (n_coarse + n_fine);
+  if (t.size() < n_all || delta.size() < n_all || positions.batch() < n_all || positions.cols() != 3 ||
+      t_fine_only.size() < std::size_t(n_rays) * n_fine || coarse_props.batch() < std::size_t(n_rays) * n_coarse)
+    throw InvalidArgument("sample_fine: buffers too small for " + std::to_string(n_rays) + " rays");
+  const Defines defines{{"N_COARSE", std::to_string(n_coarse)},
+                        {"N_FINE", std::to_string(n_fine)},
+                        {"N_ALL", std::to_string(n_coarse + n_fine)}};
+  device.kernel("hierarchical.cl", "sample_fine", defines)
+      .args(n_rays, jitter ? 1u : 0u, seed, rays, t_coarse, delta_coarse, coarse_props.data(), coarse_props.cols(),
+            t_fine_only, t, delta, positions.data())
+      .launch(n_rays, 16);
+}
+
+}  // namespace relit::method
