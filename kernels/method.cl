@@ -96,12 +96,14 @@ __kernel void env_visibility_inputs(const uint n, const uint n_env, __global con
 }
 
 // Sample-major rows (a one-column tiled matrix is flat: row r at r) <-> N_e columns of a tiled matrix:
-// dst[s, col + j] = src[s N_e + j]  (rows_to_columns)   and   dst[row0 + s N_e + j] = src[s, j]  (columns_to_rows).
+// dst[s, col + j] = src[s N_e + j, 0]  (rows_to_columns; src has src_cols columns, V first)   and
+// dst[row0 + s N_e + j] = src[s, j]  (columns_to_rows).
 __kernel void env_rows_to_columns(const uint n, const uint n_env, __global const float* restrict src,
-                                  __global float* restrict dst, const uint dst_cols, const uint col) {
+                                  const uint src_cols, __global float* restrict dst, const uint dst_cols,
+                                  const uint col) {
   const uint r = get_global_id(0);
   if (r >= n * n_env) return;
-  dst[TILED_AT(dst_cols, r / n_env, col + r % n_env)] = src[r];
+  dst[TILED_AT(dst_cols, r / n_env, col + r % n_env)] = src[TILED_AT(src_cols, r, 0)];
 }
 __kernel void env_columns_to_rows(const uint n, const uint n_env, __global const float* restrict src,
                                   __global float* restrict dst, const uint row0) {

@@ -5,6 +5,7 @@
 
 #include <relit/dataset.hpp>
 #include <relit/method/bi.hpp>
+#include <relit/method/nerv.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/render/rays.hpp>
 
@@ -44,6 +45,15 @@ method::PassOptions training_options() {
   return o;
 }
 
+Json tiny_nerv() {
+  return {{"renderer", {{"n_samples", 16}}},
+          {"bounce", {{"n_dirs", 8}, {"n_dirs_env", 4}}},
+          {"density_grid", {{"resolution", 8}, {"march_steps", 16}}},
+          {"property", {{"encoding", kFreq}, {"network", kMlp}}},
+          {"visibility",
+           {{"position_encoding", kFreq}, {"direction_encoding", kFreq}, {"trunk", kMlp}, {"network", kMlp}}}};
+}
+
 // sum_j w_j colour_j of colour `which` over the rays of the tiny image, in double.
 double weighted_colour(method::Model& model, method::ModelPass& pass, Buffer<float>& rays, std::uint32_t n,
                        std::uint32_t which, const std::vector<float>& w) {
@@ -68,6 +78,7 @@ void check_gradients(method::Model& model, std::uint32_t which, std::size_t lo, 
   std::vector<float> w(3 * n);
   for (auto& x : w) x = u(rng);
   weighted_colour(model, *pass, rays, n, which, w);
+  if (auto* p = dynamic_cast<method::NeRVPass*>(pass.get())) p->keep_termination = true;
   std::vector<Buffer<float>> d;
   std::vector<const Buffer<float>*> d_ptrs;
   for (std::uint32_t i = 0; i < model.n_colors(); ++i)
@@ -202,6 +213,245 @@ TEST(Bi, GradientsOfBothImagesMatchFiniteDifferences) {
     SCOPED_TRACE("coarse image");
     check_gradients(model, 0, fine, model.n_params());
   }
+}
+
+// ---- NeRV ------------------------------------------------------------------------------------------------------
+
+// Host reference of NeRV's indirect term (kernels/nerv.cl) in double: colour_r += W_r ⊙ E_r, with x_t given
+// (a constant of the render loss).
+struct NervInputs {
+  std::uint32_t n_rays = 8, spr = 16, K = 8, pc = 6;
+  std::vector<float> rays, t, delta, props, dirs, vd, bprops, light_vd;  // props: n x 6 rows; bprops: (nq + n) x pc rows
+  std::vector<double> x_t;                                                // 3 per ray
+  float g_scale = 0.95f;
+};
+
+double hg(double mu, double g) {
+  const double d = 1 + g * g + 2 * g * mu;
+  return (1 - g * g) / (4 * M_PI * d * std::sqrt(d));
+}
+
+// sum_r dc_r . (W_r ⊙ E_r) for the inputs (props and bprops may be perturbed; x_t stays).
+double nerv_indirect_reference(const NervInputs& in, const std::vector<double>& props, const std::vector<double>& bprops,
+                               const std::vector<float>& dc) {
+  const std::uint32_t nq = in.n_rays * in.K;
+  double out = 0;
+  for (std::uint32_t r = 0; r < in.n_rays; ++r) {
+    const float* ray = &in.rays[r * render::kRayFloats];
+    double T = 1, W[3] = {0, 0, 0};
+    for (std::uint32_t i = 0; i < in.spr; ++i) {
+      const std::size_t s = r * in.spr + i;
+      const double a = 1 - std::exp(-props[s * 6] * in.delta[s]);
+      for (int c = 0; c < 3; ++c) W[c] += T * a * props[s * 6 + 1 + c];
+      T *= 1 - a;
+    }
+    const double g_t = in.g_scale * bprops[(nq + r) * in.pc + 4];
+    double E[3] = {0, 0, 0};
+    for (std::uint32_t k = 0; k < in.K; ++k) {
+      const std::size_t q = r * in.K + k;
+      double w[3], x[3], to_l[3], r2 = 0, mu_l = 0, mu_t = 0;
+      for (int a = 0; a < 3; ++a) w[a] = in.dirs[k * 3 + a];
+      for (int a = 0; a < 3; ++a) x[a] = std::clamp(in.x_t[r * 3 + a] + in.vd[q * 2 + 1] * w[a], -1.0, 1.0);
+      for (int a = 0; a < 3; ++a) to_l[a] = ray[8 + a] - x[a], r2 += to_l[a] * to_l[a];
+      for (int a = 0; a < 3; ++a) mu_l += -w[a] * to_l[a] / std::sqrt(r2), mu_t += -ray[4 + a] * w[a];
+      const double f = hg(mu_t, g_t) * hg(mu_l, in.g_scale * bprops[q * in.pc + 4]) * (1 - in.vd[q * 2]) *
+                       in.light_vd[q * 2] / r2;
+      for (int c = 0; c < 3; ++c) E[c] += f * bprops[q * in.pc + 1 + c] * ray[12 + c];
+    }
+    for (int c = 0; c < 3; ++c) out += dc[r * 3 + c] * W[c] * E[c] * 4 * M_PI / in.K;
+  }
+  return out;
+}
+
+TEST(NeRV, IndirectBounceKernelsMatchAHostReferenceAndFiniteDifferences) {
+  // The kernels of the indirect bounce on random inputs: the colour against a double-precision host reference,
+  // and dL/d(albedo, g) at the bounce points and x_t and dL/d(sigma, albedo) along the ray against central
+  // differences of that reference.
+  const Device dev = test::test_device();
+  NervInputs in;
+  const std::uint32_t n = in.n_rays * in.spr, nq = in.n_rays * in.K;
+  Scene1 sc;
+  Buffer<float> rays(dev, std::size_t(in.n_rays) * render::kRayFloats);
+  render::image_rays(dev, Camera::look_at({0.3f, -3.5f, 1.0f}, {0, 0, 0}, {0, 0, 1}, 0.5f, 4, 2), sc.light, 0, in.n_rays,
+                     rays);
+  render::RendererSettings rs;
+  rs.n_samples = in.spr;
+  rs.sh_lmax = -1;
+  render::VolumeRenderer renderer(dev, rs);
+  Buffer<float> t(dev, n), delta(dev, n);
+  nn::BatchMatrix positions(dev, n, 3);
+  renderer.sample(rays, in.n_rays, true, 4, t, delta, positions);
+  in.rays = rays.read();
+  in.t = t.read();
+  in.delta = delta.read();
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  in.props.resize(std::size_t(n) * 6);
+  for (std::size_t s = 0; s < n; ++s) {
+    in.props[s * 6] = 3.0f * u(rng);
+    for (int c = 1; c < 4; ++c) in.props[s * 6 + c] = u(rng);
+    in.props[s * 6 + 4] = 2.0f * u(rng) - 1.0f;
+  }
+  in.bprops.resize(std::size_t(nq + in.n_rays) * in.pc);
+  for (auto& x : in.bprops) x = u(rng);
+  for (std::size_t q = 0; q < nq + in.n_rays; ++q) in.bprops[q * in.pc + 4] = 1.6f * u(rng) - 0.8f;
+  in.vd.resize(std::size_t(nq) * 2);
+  in.light_vd.resize(std::size_t(nq) * 2);
+  for (std::size_t q = 0; q < nq; ++q) {
+    in.vd[q * 2] = u(rng), in.vd[q * 2 + 1] = 1.5f * u(rng);
+    in.light_vd[q * 2] = u(rng), in.light_vd[q * 2 + 1] = u(rng);
+  }
+  render::IndirectBasis basis(dev, in.K, -1);
+  basis.draw(2, 0);
+  in.dirs = basis.dirs().download_row_major();
+  nn::BatchMatrix props(dev, n, 6), bprops(dev, nq + in.n_rays, in.pc), vd(dev, nq, 2), light_vd(dev, nq, 2),
+      net_pos(dev, nq + in.n_rays, 3), light_in(dev, nq, 6), d_bprops(dev, nq + in.n_rays, in.pc), d_props(dev, n, 6);
+  props.upload_row_major(in.props);
+  bprops.upload_row_major(in.bprops);
+  vd.upload_row_major(in.vd);
+  light_vd.upload_row_major(in.light_vd);
+  Buffer<float> albedo_sum(dev, 4 * in.n_rays), x_t(dev, 4 * in.n_rays), x_b(dev, 4 * nq), indirect(dev, 4 * in.n_rays),
+      dw(dev, 4 * in.n_rays), color(dev, 3 * in.n_rays);
+  color.fill(0.0f);
+  dev.kernel("nerv.cl", "nerv_termination")
+      .args(in.n_rays, in.spr, rays, t, delta, props.data(), 6u, albedo_sum, x_t, 0u)
+      .launch(in.n_rays, 16);
+  dev.kernel("nerv.cl", "nerv_bounce_points")
+      .args(in.n_rays, in.K, rays, x_t, basis.dirs().data(), vd.data(), 2u, x_b, net_pos.data(), light_in.data())
+      .launch(nq + in.n_rays, 64);
+  dev.kernel("nerv.cl", "nerv_indirect")
+      .args(in.n_rays, in.K, rays, basis.dirs().data(), x_b, bprops.data(), in.pc, in.g_scale, light_vd.data(), 2u,
+            albedo_sum, color, indirect)
+      .launch(in.n_rays, 16);
+  // x_t: the expected termination point, in double.
+  const auto xt_dev = x_t.read();
+  for (std::uint32_t r = 0; r < in.n_rays; ++r) {
+    double T = 1, ws = 0, wt = 0;
+    for (std::uint32_t i = 0; i < in.spr; ++i) {
+      const std::size_t s = r * in.spr + i;
+      const double a = 1 - std::exp(-double(in.props[s * 6]) * in.delta[s]);
+      ws += T * a, wt += T * a * in.t[s];
+      T *= 1 - a;
+    }
+    for (int a = 0; a < 3; ++a) {
+      in.x_t.push_back(in.rays[r * render::kRayFloats + a] + wt / ws * in.rays[r * render::kRayFloats + 4 + a]);
+      EXPECT_NEAR(xt_dev[r * 4 + a], in.x_t.back(), 1e-4);
+    }
+  }
+  std::vector<float> ones(3 * in.n_rays, 1.0f), dc(3 * in.n_rays);
+  for (auto& x : dc) x = 2.0f * u(rng) - 1.0f;
+  const std::vector<double> p0(in.props.begin(), in.props.end()), b0(in.bprops.begin(), in.bprops.end());
+  const auto c_dev = color.read();
+  for (std::uint32_t r = 0; r < in.n_rays; ++r)
+    for (int c = 0; c < 3; ++c) {
+      std::vector<float> e(3 * in.n_rays, 0.0f);
+      e[r * 3 + c] = 1.0f;
+      const double ref = nerv_indirect_reference(in, p0, b0, e);
+      EXPECT_NEAR(c_dev[r * 3 + c], ref, 1e-5 + 1e-4 * std::fabs(ref)) << "ray " << r << " channel " << c;
+    }
+  // Backward.
+  Buffer<float> d_color(dev, dc);
+  d_props.data().fill(0.0f);
+  dev.kernel("nerv.cl", "nerv_indirect_backward")
+      .args(in.n_rays, in.K, rays, basis.dirs().data(), x_b, bprops.data(), in.pc, in.g_scale, light_vd.data(), 2u,
+            albedo_sum, indirect, d_color, d_bprops.data(), dw)
+      .launch(in.n_rays, 16);
+  dev.kernel("nerv.cl", "nerv_samples_backward")
+      .args(in.n_rays, in.spr, delta, props.data(), 6u, dw, d_props.data())
+      .launch(in.n_rays, 16);
+  const auto gb = d_bprops.download_row_major(), gp = d_props.download_row_major();
+  auto fd = [&](bool bounce, std::size_t idx) {
+    std::vector<double> p = p0, b = b0;
+    std::vector<double>& v = bounce ? b : p;
+    const double h = 1e-4;
+    v[idx] += h;
+    const double fp = nerv_indirect_reference(in, p, b, dc);
+    v[idx] -= 2 * h;
+    const double fm = nerv_indirect_reference(in, p, b, dc);
+    return (fp - fm) / (2 * h);
+  };
+  int checked = 0;
+  for (std::size_t q = 0; q < nq + in.n_rays; q += 3)
+    for (std::uint32_t c : {1u, 2u, 3u, 4u}) {
+      if (q >= nq && c != 4) continue;  // x_t contributes its g only
+      const double ref = fd(true, q * in.pc + c);
+      EXPECT_NEAR(gb[q * in.pc + c], ref, 1e-4 + 1e-3 * std::fabs(ref)) << "bounce row " << q << " column " << c;
+      ++checked;
+    }
+  for (std::size_t s = 0; s < n; s += 5)
+    for (std::uint32_t c : {0u, 1u, 2u, 3u}) {
+      const double ref = fd(false, s * 6 + c);
+      EXPECT_NEAR(gp[s * 6 + c], ref, 1e-4 + 1e-3 * std::fabs(ref)) << "sample " << s << " column " << c;
+      ++checked;
+    }
+  EXPECT_GT(checked, 150);
+}
+
+TEST(NeRV, MarchTargetsMatchAHomogeneousSphere) {
+  // Visibility and expected termination depth of a homogeneous sphere (sigma 3, radius 0.6, in a 64^3 grid)
+  // from inside and outside it, against the closed forms: with chord length L ahead of x,
+  // V = exp(-sigma L) and D = t_in + 1/sigma - L exp(-sigma L) / (1 - exp(-sigma L)).
+  const Device dev = test::test_device();
+  const int res = 64;
+  const double sigma = 3.0, radius = 0.6;
+  std::vector<float> grid(std::size_t(res) * res * res);
+  for (int z = 0; z < res; ++z)
+    for (int y = 0; y < res; ++y)
+      for (int x = 0; x < res; ++x) {
+        const double p[3] = {(x + 0.5) / res * 2 - 1, (y + 0.5) / res * 2 - 1, (z + 0.5) / res * 2 - 1};
+        grid[(std::size_t(z) * res + y) * res + x] = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) < radius ? sigma : 0.0;
+      }
+  Buffer<float> g(dev, grid);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  const std::uint32_t n = 256;
+  std::vector<float> rows(std::size_t(n) * 6);
+  for (std::uint32_t s = 0; s < n; ++s) {
+    double x[3], w[3], wn = 0;
+    for (int a = 0; a < 3; ++a) x[a] = 0.7 * u(rng), w[a] = u(rng), wn += w[a] * w[a];
+    for (int a = 0; a < 3; ++a) rows[s * 6 + a] = float(0.5 * x[a] + 0.5), rows[s * 6 + 3 + a] = float(w[a] / std::sqrt(wn));
+  }
+  nn::BatchMatrix in(dev, n, 6), out(dev, n, 2);
+  in.upload_row_major(rows);
+  dev.kernel("nerv.cl", "nerv_march_targets").args(n, in.data(), g, res, res, res, 512u, out.data(), 0u).launch(n, 64);
+  const auto got = out.download_row_major();
+  int hits = 0;
+  double tau_error = 0;
+  for (std::uint32_t s = 0; s < n; ++s) {
+    double x[3], w[3];
+    for (int a = 0; a < 3; ++a) x[a] = 2.0 * rows[s * 6 + a] - 1.0, w[a] = rows[s * 6 + 3 + a];
+    // Ray-sphere: t^2 + 2 b t + c = 0.
+    const double b = x[0] * w[0] + x[1] * w[1] + x[2] * w[2];
+    const double c = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - radius * radius;
+    const double disc = b * b - c;
+    double t_in = 0, L = 0;
+    if (disc > 0) {
+      const double t0 = -b - std::sqrt(disc), t1 = -b + std::sqrt(disc);
+      if (t1 > 0) t_in = std::max(t0, 0.0), L = t1 - t_in;
+    }
+    if (L < 0.05) continue;  // grazing chords: the voxelised boundary dominates
+    ++hits;
+    const double V = std::exp(-sigma * L);
+    const double D = t_in + 1 / sigma - L * V / (1 - V);
+    // The trilinear grid blurs the boundary over a voxel (2/64) at each end of the chord: optical depth within
+    // sigma * 2 voxels, and close on average.
+    const double tau = -std::log(std::max(double(got[s * 2]), 1e-12));
+    EXPECT_NEAR(tau, sigma * L, 0.2) << "sample " << s;
+    EXPECT_NEAR(got[s * 2 + 1], D, 0.05) << "sample " << s;
+    tau_error += std::fabs(tau - sigma * L);
+  }
+  EXPECT_GT(hits, 100);
+  EXPECT_LT(tau_error / hits, 0.06);
+}
+
+TEST(NeRV, RenderGradientMatchesFiniteDifferences) {
+  // Direct light and the indirect bounce: through W (density and albedo along the ray) and the albedo and g at
+  // the bounce points and at x_t (held fixed: the termination point is a constant for the render loss).
+  const Device dev = test::test_device();
+  method::NeRV model(dev, tiny_nerv());
+  model.initialize(5);
+  model.refresh_density_grid();
+  check_gradients(model, 0, 0, model.n_params());
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include <relit/method/model.hpp>
 #include <relit/method/ours.hpp>
 #include <relit/method/bi.hpp>
+#include <relit/method/nerv.hpp>
 #include <relit/method/evaluate.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/metrics.hpp>

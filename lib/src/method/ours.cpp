@@ -338,7 +338,7 @@ void Ours::prepare_branch(OursPass& pass, const Branch& branch, std::uint32_t n_
   matrix(pass.positions, 3);
   matrix(pass.props_raw, prop_out);
   matrix(pass.vis_in, 6);
-  matrix(pass.vis, 1);
+  matrix(pass.vis, m_visibility->n_output_dims());  // V (NeRV: V and depth)
   const std::uint32_t prop_cols = renderer_for(branch.n_samples, n_env).prop_cols();
   matrix(pass.props, prop_cols);
   matrix(pass.radiance, 3);
@@ -356,7 +356,8 @@ void Ours::prepare_branch(OursPass& pass, const Branch& branch, std::uint32_t n_
     // Sample-major rows s N_e + j: V_ψ's queries toward the environment directions.
     const std::uint32_t rows = n * n_env;
     if (pass.env_vis_in.cols() != 6) pass.env_vis_in = nn::BatchMatrix(m_device, rows, 6);
-    if (pass.env_vis.cols() != 1) pass.env_vis = nn::BatchMatrix(m_device, rows, 1);
+    if (pass.env_vis.cols() != m_visibility->n_output_dims())
+      pass.env_vis = nn::BatchMatrix(m_device, rows, m_visibility->n_output_dims());
     pass.env_vis_in.resize(rows);
     pass.env_vis.resize(rows);
     if (m_environment) {
@@ -427,7 +428,7 @@ void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& r
           .launch(std::size_t(n) * n_env, 64);
       m_visibility->inference(m_device, psi, pass.env_vis_in, pass.env_vis, *pass.ws_env_visibility);
       m_device.kernel("method.cl", "env_rows_to_columns")
-          .args(n, n_env, pass.env_vis.data(), pass.props.data(), pass.props.cols(), env_col)
+          .args(n, n_env, pass.env_vis.data(), pass.env_vis.cols(), pass.props.data(), pass.props.cols(), env_col)
           .launch(std::size_t(n) * n_env, 64);
     }
   }

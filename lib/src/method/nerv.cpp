@@ -1,0 +1,327 @@
+// NeRV (seed appendix D): Ours' property network and renderer for the direct light, a two-stage visibility
+// network that also predicts the expected termination depth, and one indirect bounce per camera ray
+// (kernels/nerv.cl).
+#include <relit/cl/program.hpp>
+#include <relit/method/nerv.hpp>
+#include <relit/nn/columns.hpp>
+#include <relit/nn/encodings.hpp>
+#include <relit/nn/registry.hpp>
+
+#include <algorithm>
+
+namespace relit::method {
+
+namespace {
+
+// NeRV's visibility MLP as one nn::Network on the encoded input [enc(x) (n_pos cols) | enc(ω)]: a trunk on
+// enc(x) gives n_trunk outputs, which joined with enc(ω) go through the head (V sigmoid, D softplus).
+// Parameters: [trunk | head].
+class TwoStageNetwork final : public nn::Network {
+ public:
+  TwoStageNetwork(std::unique_ptr<nn::Network> trunk, std::unique_ptr<nn::Network> head, std::uint32_t n_pos,
+                  std::uint32_t n_dir)
+      : m_trunk(std::move(trunk)), m_head(std::move(head)), m_pos(n_pos), m_dir(n_dir) {}
+  std::string type() const override { return "NeRVVisibility"; }
+  Json hyperparams() const override { return {{"trunk", m_trunk->hyperparams()}, {"head", m_head->hyperparams()}}; }
+  std::uint32_t n_params() const override { return m_trunk->n_params() + m_head->n_params(); }
+  void initialize_params(float* out, std::uint64_t seed) const override {
+    m_trunk->initialize_params(out, seed);
+    m_head->initialize_params(out + m_trunk->n_params(), seed + 7);
+  }
+  std::uint32_t n_input_dims() const override { return m_pos + m_dir; }
+  std::uint32_t n_output_dims() const override { return m_head->n_output_dims(); }
+
+  struct Work final : nn::Workspace {
+    nn::BatchMatrix trunk_in, trunk_out, head_in, d_head_in, d_trunk_out, d_trunk_in;
+    std::unique_ptr<nn::Workspace> trunk, head;
+  };
+  std::unique_ptr<nn::Workspace> make_workspace(const Device& device) const override {
+    auto w = std::make_unique<Work>();
+    w->trunk = m_trunk->make_workspace(device);
+    w->head = m_head->make_workspace(device);
+    return w;
+  }
+  void inference(const Device& device, nn::ConstParamSlice params, const nn::BatchMatrix& input,
+                 nn::BatchMatrix& output) const override {
+    auto w = make_workspace(device);
+    run(device, params, input, output, static_cast<Work&>(*w), false);
+  }
+  void inference(const Device& device, nn::ConstParamSlice params, const nn::BatchMatrix& input,
+                 nn::BatchMatrix& output, nn::Workspace& workspace) const override {
+    run(device, params, input, output, work(workspace), false);
+  }
+  void forward(const Device& device, nn::ConstParamSlice params, const nn::BatchMatrix& input, nn::BatchMatrix& output,
+               nn::Workspace& workspace) const override {
+    run(device, params, input, output, work(workspace), true);
+  }
+  void backward(const Device& device, nn::ConstParamSlice params, const nn::BatchMatrix& input,
+                const nn::BatchMatrix& output, const nn::BatchMatrix& d_output, nn::ParamSlice grads, bool accumulate,
+                nn::BatchMatrix* d_input, nn::Workspace& workspace) const override {
+    (void)input;
+    Work& w = work(workspace);
+    const std::uint32_t n = output.batch(), nt = m_trunk->n_output_dims();
+    fit(w.d_head_in, device, n, nt + m_dir);
+    fit(w.d_trunk_out, device, n, nt);
+    m_head->backward(device, {params.buffer, params.offset + m_trunk->n_params()}, w.head_in, output, d_output,
+                     {grads.buffer, grads.offset + m_trunk->n_params()}, accumulate, &w.d_head_in, *w.head);
+    nn::copy_columns(device, w.d_head_in, 0, w.d_trunk_out, 0, nt);
+    if (d_input) fit(w.d_trunk_in, device, n, m_pos);
+    m_trunk->backward(device, params, w.trunk_in, w.trunk_out, w.d_trunk_out, grads, accumulate,
+                      d_input ? &w.d_trunk_in : nullptr, *w.trunk);
+    if (d_input) {
+      nn::copy_columns(device, w.d_trunk_in, 0, *d_input, 0, m_pos);
+      nn::copy_columns(device, w.d_head_in, nt, *d_input, m_pos, m_dir);
+    }
+  }
+
+ private:
+  static void fit(nn::BatchMatrix& m, const Device& device, std::uint32_t batch, std::uint32_t cols) {
+    if (m.cols() != cols || m.padded() != nn::padded_batch(batch)) m = nn::BatchMatrix(device, batch, cols);
+    m.resize(batch);
+  }
+  static Work& work(nn::Workspace& w) {
+    auto* p = dynamic_cast<Work*>(&w);
+    if (!p) throw InvalidArgument("NeRV visibility network: the workspace was made by another component");
+    return *p;
+  }
+  void run(const Device& device, nn::ConstParamSlice params, const nn::BatchMatrix& input, nn::BatchMatrix& output,
+           Work& w, bool training) const {
+    const std::uint32_t n = input.batch(), nt = m_trunk->n_output_dims();
+    fit(w.trunk_in, device, n, m_pos);
+    fit(w.trunk_out, device, n, nt);
+    fit(w.head_in, device, n, nt + m_dir);
+    nn::copy_columns(device, input, 0, w.trunk_in, 0, m_pos);
+    const nn::ConstParamSlice head{params.buffer, params.offset + m_trunk->n_params()};
+    if (training) m_trunk->forward(device, params, w.trunk_in, w.trunk_out, *w.trunk);
+    else m_trunk->inference(device, params, w.trunk_in, w.trunk_out, *w.trunk);
+    nn::copy_columns(device, w.trunk_out, 0, w.head_in, 0, nt);
+    nn::copy_columns(device, input, m_pos, w.head_in, nt, m_dir);
+    if (training) m_head->forward(device, head, w.head_in, output, *w.head);
+    else m_head->inference(device, head, w.head_in, output, *w.head);
+  }
+  std::unique_ptr<nn::Network> m_trunk, m_head;
+  std::uint32_t m_pos, m_dir;
+};
+
+Json default_visibility() {
+  return {{"position_encoding", {{"type", "HashGrid"}, {"n_levels", 8}, {"n_features_per_level", 2},
+                                 {"log2_hashmap_size", 15}, {"base_resolution", 8}, {"per_level_scale", 1.5}}},
+          {"direction_encoding", {{"type", "SphericalHarmonics"}, {"degree", 4}}},
+          {"trunk", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}},
+          {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 1}}}};
+}
+
+NeRVPass& nerv_pass(ModelPass& pass) {
+  auto* p = dynamic_cast<NeRVPass*>(&pass);
+  if (!p) throw InvalidArgument("NeRV: give a pass of its make_pass()");
+  return *p;
+}
+
+void fit(nn::BatchMatrix& m, const Device& device, std::uint32_t batch, std::uint32_t cols) {
+  if (m.cols() != cols || m.padded() != nn::padded_batch(batch)) m = nn::BatchMatrix(device, batch, cols);
+  m.resize(batch);
+}
+
+void ensure(Buffer<float>& b, const Device& device, std::size_t n) {
+  if (b.size() < n) b = Buffer<float>(device, n);
+}
+
+Json without_heads(Json network) {
+  network.erase("output_heads");
+  network.erase("output_activation");
+  return network;
+}
+
+}  // namespace
+
+NeRV::NeRV(const Device& device, const Json& config, const std::string& pointer) : Ours(device, Variant::nerv) {
+  configure(config, pointer, nullptr);
+  allocate();
+}
+
+void NeRV::describe(config::Docs& docs) {
+  NeRV m(Variant::nerv);
+  m.configure(Json::object(), "/model", &docs);
+}
+
+void NeRV::configure_extra(config::Reader& r, config::Docs* docs) {
+  {
+    config::Reader b(r.sub("bounce", Json::object(), "object", "the one indirect bounce per camera ray"),
+                     r.pointer("bounce"), "bounce");
+    m_nerv.n_dirs = b.uint("n_dirs", 128, 1, 4096, "K, uniform bounce directions from the expected termination point");
+    m_nerv.n_dirs_env = b.uint("n_dirs_env", 32, 1, 4096, "K when the scene is also lit by an environment map");
+    m_nerv.visibility_fraction = b.number("visibility_fraction", 0.25f, 1e-3f, 1.0f,
+                                          "share of each batch's rays whose bounce queries train the visibility net");
+    b.finish();
+    if (docs) docs->emplace_back(b.pointer(), b.docs());
+    r.set_resolved("bounce", b.resolved());
+  }
+  const std::string ptr = r.pointer("visibility");
+  const Json defaults = default_visibility();
+  config::Reader v(r.sub("visibility", defaults, "object",
+                         "visibility net V_ψ: {position_encoding, trunk, n_trunk_outputs, direction_encoding, network}"),
+                   ptr, "visibility");
+  Json penc = v.sub("position_encoding", defaults["position_encoding"], "component", "position encoding (3 dims)");
+  Json denc = v.sub("direction_encoding", defaults["direction_encoding"], "component", "direction encoding (3 dims)");
+  const Json trunk_json = v.sub("trunk", defaults["trunk"], "component", "the MLP on the encoded position");
+  const std::uint32_t n_trunk = v.uint("n_trunk_outputs", 8, 1, 64, "the trunk's outputs, joined with the encoded direction");
+  const Json head_json = v.sub("network", defaults["network"], "component",
+                               "the head on [trunk outputs, encoded direction] (outputs: V sigmoid, depth softplus)");
+  v.finish();
+  if (docs) docs->emplace_back(v.pointer(), v.docs());
+  for (const auto& [key, net] : {std::pair<std::string, Json>{"trunk", trunk_json}, {"network", head_json}}) {
+    if (!net.is_object()) throw ConfigError(ptr + "/" + key, "must be a network object, got " + net.dump());
+    for (const char* k : {"output_heads", "output_activation"})
+      if (net.contains(k)) throw ConfigError(ptr + "/" + key + "/" + k, "is set by the model; remove it");
+  }
+  penc["n_dims_to_encode"] = 3;
+  denc["n_dims_to_encode"] = 3;
+  auto enc = nn::create_encoding({{"type", "Composite"}, {"nested", {penc, denc}}}, 6, ptr);
+  const auto& parts = dynamic_cast<const nn::CompositeEncoding&>(*enc).parts();
+  const std::uint32_t n_pos = parts[0].encoding->n_output_dims(), n_dir = parts[1].encoding->n_output_dims();
+  Json tj = trunk_json, hj = head_json;
+  tj["output_heads"] = Json::array({{{"n_dims", n_trunk}, {"activation", "None"}}});
+  hj["output_heads"] = Json::array({{{"n_dims", 1}, {"activation", "Sigmoid"}}, {{"n_dims", 1}, {"activation", "Softplus"}}});
+  auto trunk = nn::create_network(tj, n_pos, n_trunk, ptr + "/trunk");
+  auto head = nn::create_network(hj, n_trunk + n_dir, 2, ptr + "/network");
+  Json res = v.resolved();
+  const Json nested = enc->hyperparams()["nested"];
+  res["position_encoding"] = nested[0];
+  res["direction_encoding"] = nested[1];
+  res["position_encoding"].erase("n_dims_to_encode");
+  res["direction_encoding"].erase("n_dims_to_encode");
+  res["trunk"] = without_heads(trunk->hyperparams());
+  res["network"] = without_heads(head->hyperparams());
+  r.set_resolved("visibility", res);
+  m_visibility = std::make_unique<nn::NetworkWithInputEncoding>(
+      std::move(enc), std::make_unique<TwoStageNetwork>(std::move(trunk), std::move(head), n_pos, n_dir));
+}
+
+std::uint32_t NeRV::queries_per_ray() const {
+  const std::uint32_t env = has_environment() ? env_dirs() : 0;
+  return m_settings.renderer.n_samples * (1 + env) + 3 * bounce_dirs(env > 0) + 1;
+}
+
+void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& o) const {
+  NeRVPass& pass = nerv_pass(base);
+  Ours::render(pass, rays, n_rays, o);  // direct light: the samples, σ, albedo, g, V and the colour
+  const std::uint32_t K = bounce_dirs(o.env != nullptr), spr = m_settings.renderer.n_samples;
+  const std::uint32_t nq = n_rays * K;
+  if (!pass.bounce_dirs || pass.n_bounce != K) pass.bounce_dirs = std::make_unique<render::IndirectBasis>(m_device, K, -1);
+  pass.n_bounce = K;
+  pass.bounce_dirs->draw(o.seed ^ 0x2545F491u, o.iteration);
+  const std::uint32_t vd = m_visibility->n_output_dims(), pc = m_property->n_output_dims();
+  ensure(pass.albedo_sum, m_device, 4 * std::size_t(n_rays));
+  ensure(pass.x_t, m_device, 4 * std::size_t(n_rays));
+  ensure(pass.indirect, m_device, 4 * std::size_t(n_rays));
+  ensure(pass.dw, m_device, 4 * std::size_t(n_rays));
+  ensure(pass.x_b, m_device, 4 * std::size_t(nq));
+  fit(pass.bounce_in, m_device, nq, 6);
+  fit(pass.bounce_vd, m_device, nq, vd);
+  fit(pass.light_in, m_device, nq, 6);
+  fit(pass.light_vd, m_device, nq, vd);
+  fit(pass.bounce_pos, m_device, nq + n_rays, 3);
+  fit(pass.bounce_props, m_device, nq + n_rays, pc);
+  if (!pass.ws_bounce_vis) {
+    pass.ws_bounce_vis = m_visibility->make_workspace(m_device);
+    pass.ws_light_vis = m_visibility->make_workspace(m_device);
+    pass.ws_bounce_property = m_property->make_workspace(m_device);
+  }
+  const auto& dirs = pass.bounce_dirs->dirs();
+  m_device.kernel("nerv.cl", "nerv_termination")
+      .args(n_rays, spr, rays, pass.t, pass.delta, pass.props.data(), pass.props.cols(), pass.albedo_sum, pass.x_t,
+            pass.keep_termination ? 1u : 0u)
+      .launch(n_rays, 16);
+  m_device.kernel("nerv.cl", "nerv_bounce_queries").args(n_rays, K, pass.x_t, dirs.data(), pass.bounce_in.data()).launch(nq, 64);
+  const nn::ConstParamSlice psi{&m_vis_params, 0};
+  const auto& grid = m_grid;
+  auto visibility = [&](const nn::BatchMatrix& in, nn::BatchMatrix& out, nn::Workspace& ws) {
+    if (o.march_visibility) {
+      m_device.kernel("nerv.cl", "nerv_march_targets")
+          .args(in.batch(), in.data(), grid.sigma, grid.dims[0], grid.dims[1], grid.dims[2], m_settings.march_steps,
+                out.data(), 0u)
+          .launch(in.batch(), 64);
+    } else {
+      m_visibility->inference(m_device, psi, in, out, ws);  // the render loss does not train ψ
+    }
+  };
+  visibility(pass.bounce_in, pass.bounce_vd, *pass.ws_bounce_vis);
+  m_device.kernel("nerv.cl", "nerv_bounce_points")
+      .args(n_rays, K, rays, pass.x_t, dirs.data(), pass.bounce_vd.data(), vd, pass.x_b, pass.bounce_pos.data(),
+            pass.light_in.data())
+      .launch(nq + n_rays, 64);
+  const nn::ConstParamSlice theta{&m_params, 0};
+  if (o.training) m_property->forward(m_device, theta, pass.bounce_pos, pass.bounce_props, *pass.ws_bounce_property);
+  else m_property->inference(m_device, theta, pass.bounce_pos, pass.bounce_props, *pass.ws_bounce_property);
+  visibility(pass.light_in, pass.light_vd, *pass.ws_light_vis);
+  m_device.kernel("nerv.cl", "nerv_indirect")
+      .args(n_rays, K, rays, dirs.data(), pass.x_b, pass.bounce_props.data(), pc, g_scale(), pass.light_vd.data(), vd,
+            pass.albedo_sum, pass.color, pass.indirect)
+      .launch(n_rays, 16);
+  if (o.timer) o.timer->mark("indirect bounce forward");
+}
+
+void NeRV::add_property_gradients(OursPass& base, const Branch& branch, const Buffer<float>& rays,
+                                  const Buffer<float>& d_color) {
+  (void)branch;
+  NeRVPass& pass = nerv_pass(base);
+  const std::uint32_t n_rays = pass.n_rays, K = pass.n_bounce;
+  const std::uint32_t vd = m_visibility->n_output_dims(), pc = m_property->n_output_dims();
+  fit(pass.d_bounce_props, m_device, n_rays * K + n_rays, pc);
+  m_device.kernel("nerv.cl", "nerv_indirect_backward")
+      .args(n_rays, K, rays, pass.bounce_dirs->dirs().data(), pass.x_b, pass.bounce_props.data(), pc, g_scale(),
+            pass.light_vd.data(), vd, pass.albedo_sum, pass.indirect, d_color, pass.d_bounce_props.data(), pass.dw)
+      .launch(n_rays, 16);
+  m_device.kernel("nerv.cl", "nerv_samples_backward")
+      .args(n_rays, pass.n_samples, pass.delta, pass.props.data(), pass.props.cols(), pass.dw, pass.d_props.data())
+      .launch(n_rays, 16);
+}
+
+void NeRV::backward(ModelPass& base, const Buffer<float>& rays, const std::vector<const Buffer<float>*>& d_colors,
+                    const PassOptions& o) {
+  NeRVPass& pass = nerv_pass(base);
+  if (pass.n_bounce == 0) throw InvalidArgument("NeRV::backward: no training render() before");
+  Ours::backward(pass, rays, d_colors, o);  // direct light and W (add_property_gradients); overwrites dθ
+  // The bounce points and x_t: their albedo and g, added to the property net's gradient.
+  m_property->backward(m_device, {&m_params, 0}, pass.bounce_pos, pass.bounce_props, pass.d_bounce_props,
+                       {&m_grads, 0}, true, nullptr, *pass.ws_bounce_property);
+  if (o.timer) o.timer->mark("indirect bounce backward");
+}
+
+void NeRV::train_visibility(ModelPass& base, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
+                            float weight, const PassOptions& o) {
+  (void)rays;
+  NeRVPass& pass = nerv_pass(base);
+  if (pass.n_bounce == 0) throw InvalidArgument("NeRV::train_visibility: no training render() before");
+  auto subset = [&](float fraction) {
+    return std::max<std::uint32_t>(
+        1, std::min(pass.n_rays, static_cast<std::uint32_t>(pass.n_rays * double(fraction) + 0.5)));
+  };
+  // Rows [0, m): camera samples toward their point light; rows [m, m + mb): the bounce queries of the first rays.
+  // m is a multiple of 16, so the tiled rows of the two parts follow each other.
+  const std::uint32_t m = subset(m_settings.visibility_fraction) * pass.n_samples;
+  const std::uint32_t mb = subset(m_nerv.visibility_fraction) * pass.n_bounce;
+  const std::uint32_t rows = m + mb;
+  fit(pass.train_in, m_device, rows, 6);
+  fit(pass.train_out, m_device, rows, 2);
+  fit(pass.train_target, m_device, rows, 2);
+  fit(pass.d_train, m_device, rows, 2);
+  pass.train_in.data().copy_from(pass.vis_in.data(), std::size_t(m) * 6);
+  // Whole 16-row tiles of the bounce queries (rows past mb land in the padding, which the loss ignores).
+  const std::size_t tiles_rows = std::min<std::size_t>({round_up(mb, 16), pass.bounce_in.padded(),
+                                                        std::size_t(pass.train_in.padded()) - m});
+  pass.train_in.data().copy_from(pass.bounce_in.data(), tiles_rows * 6, 0, std::size_t(m) * 6);
+  m_device.kernel("nerv.cl", "nerv_march_targets")
+      .args(rows, pass.train_in.data(), m_grid.sigma, m_grid.dims[0], m_grid.dims[1], m_grid.dims[2],
+            m_settings.march_steps, pass.train_target.data(), 0u)
+      .launch(rows, 64);
+  if (o.timer) o.timer->mark("visibility targets (march)");
+  const nn::ConstParamSlice psi{&m_vis_params, 0};
+  m_visibility->forward(m_device, psi, pass.train_in, pass.train_out, *pass.ws_visibility);
+  loss.evaluate(m_device, pass.train_out, pass.train_target, pass.d_train, value, weight);
+  m_visibility->backward(m_device, psi, pass.train_in, pass.train_out, pass.d_train, {&m_vis_grads, 0}, false, nullptr,
+                         *pass.ws_visibility);
+  if (o.timer) o.timer->mark("visibility net training");
+}
+
+}  // namespace relit::method
