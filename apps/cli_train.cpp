@@ -1,4 +1,4 @@
-// relit train / relit render: fit the "Ours" model to a dataset, and relight a trained run.
+// relit train / relit render: fit a method (Ours or a baseline) to a dataset, and relight a trained run.
 #include "cli.hpp"
 #include "progress_bar.hpp"
 
@@ -32,8 +32,9 @@ std::string fixed(double v, int digits) {
 }
 
 struct TrainOptions {
-  std::string dataset, config = "fast", out, device;
+  std::string dataset, config = "fast", out, device, method;
   long long steps = -1, seed = -1;
+  double minutes = 0;
   bool resume = false;
   unsigned profile = 0;
 };
@@ -49,7 +50,13 @@ int run_train(const TrainOptions& o) {
     if (fs::exists(checkpoint))
       throw IOError(o.out + " already holds a run (checkpoint.relit); pass --resume to continue it or choose "
                             "another --out");
-    config = method::load_run_config(o.config);
+    config = method::load_run_config(method::config_for_method(o.config, o.method));
+    if (!o.method.empty()) {
+      if (config.contains("method") && config["method"] != o.method)
+        throw ConfigError("/method", "is \"" + config["method"].get<std::string>() + "\" in " + o.config +
+                                         " but --method says " + o.method);
+      config["method"] = o.method;
+    }
   }
   if (o.seed >= 0) config["training"]["seed"] = o.seed;
   const Device device = Device::select(o.device);
@@ -74,7 +81,9 @@ int run_train(const TrainOptions& o) {
             << device.info().name << "\n";
   ProgressBar bar("train");
   const auto start_step = trainer.steps();
+  bool out_of_time = false;
   const auto stats = trainer.run_until(target, [&](const method::TrainStats& s) {
+    if (o.minutes > 0 && s.elapsed >= 60.0 * o.minutes && s.step < target) out_of_time = true;
     Progress p;
     p.done = s.step - start_step;
     p.total = target - start_step;
@@ -84,9 +93,13 @@ int run_train(const TrainOptions& o) {
     p.unit = "steps";
     p.message = "step " + std::to_string(s.step) + " loss " + fixed(s.loss, 5) +
                 (std::isnan(s.val_psnr) ? std::string() : " val PSNR " + fixed(s.val_psnr, 2) + " dB");
-    return bar(p);
+    return bar(p) && !out_of_time;
   });
   bar.finish();
+  if (out_of_time) {  // the time budget ended the run early (run_until() has written its checkpoint)
+    std::cout << "stopped at step " << stats.step << " after the --minutes budget (" << fixed(o.minutes, 1)
+              << " min)\n";
+  }
   std::cout << "trained " << stats.step << " steps in " << fixed(stats.elapsed, 1) << " s ("
             << fixed(stats.steps_per_second, 2) << " steps/s); loss " << fixed(stats.loss, 6);
   if (!std::isnan(stats.val_psnr)) std::cout << ", validation PSNR " << fixed(stats.val_psnr, 2) << " dB";
@@ -269,6 +282,9 @@ void add_train_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("train", "train the relightable model on a dataset (writes a run folder)");
   cmd->add_option("dataset", o->dataset, "dataset folder (relit generate writes one)")->required();
   cmd->add_option("--config,-c", o->config, "preset (fast, paper) or a run config .json")->capture_default_str();
+  cmd->add_option("--method,-m", o->method,
+                  "ours, bi (Bi et al.) or nerv (NeRV); with a preset name, that method's preset (bi-fast, ...)");
+  cmd->add_option("--minutes", o->minutes, "stop after this much training time (a checkpoint is written)");
   cmd->add_option("--out,-o", o->out, "run folder: config.json, log.jsonl, checkpoint.relit")->required();
   cmd->add_option("--steps", o->steps, "train until this step (default: the config's training.steps)");
   cmd->add_option("--seed", o->seed, "training seed (default: the config's training.seed)");

@@ -63,6 +63,15 @@ Json load_run_config(const std::string& spec) {
   return parse_json(io::read_file(spec), spec);
 }
 
+std::string config_for_method(const std::string& spec, const std::string& method) {
+  if (method.empty()) return spec;
+  const auto methods = method_names();
+  if (std::find(methods.begin(), methods.end(), method) == methods.end())
+    throw InvalidArgument("unknown method '" + method + "'; methods: " + join(methods));
+  if (method == "ours" || (spec != "fast" && spec != "paper")) return spec;
+  return method + "-" + spec;
+}
+
 // ---- datasets ----------------------------------------------------------------------------------------------
 
 std::vector<float> DatasetSplit::image(std::size_t i) const {

@@ -35,6 +35,10 @@ namespace relit::method {
 std::vector<std::string> preset_names();
 /// A preset run config by name; throws InvalidArgument listing the presets for an unknown name.
 Json preset(const std::string& name);
+/// The preset or file to load for `spec` and a method: with a preset name ("fast", "paper") and a baseline
+/// method ("bi", "nerv"), that method's preset ("bi-fast"); otherwise `spec` itself. Throws InvalidArgument
+/// for an unknown method.
+std::string config_for_method(const std::string& spec, const std::string& method);
 /// `spec` is a preset name or the path of a JSON file; throws ConfigError/IOError naming the file on errors.
 Json load_run_config(const std::string& spec);
 
