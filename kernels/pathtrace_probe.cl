@@ -53,18 +53,19 @@ __kernel void probe_brdf_albedo(const uint n, __global const float4* cases, cons
   if (i >= n) return;
   const float3 nrm = (float3)(0.0f, 0.0f, 1.0f), wo = cases[i].xyz;
   const float r = cases[i].w, a2 = r * r * r * r;
+  const BrdfView v = brdf_view(nrm, wo, r);
   float diffuse = 0.0f, spec = 0.0f;
   for (uint a = 0; a < m; ++a) {
     float row_d = 0.0f, row_s = 0.0f;  // rows summed apart keep the float sums accurate
     for (uint b = 0; b < m; ++b) {
       const float u1 = (a + 0.5f) / m, u2 = (b + 0.5f) / m;
       const float3 wd = brdf_sample(nrm, wo, r, 0.25f, u1, u2);  // cosine half: pdf n.wi / pi
-      row_d += brdf_terms(nrm, wo, wd, r, 0).diffuse * M_PI_F;
+      row_d += brdf_at(&v, wd, 0).diffuse * M_PI_F;
       const float3 ws = brdf_sample(nrm, wo, r, 0.75f, u1, u2);  // GGX half: pdf D n.h / (4 wo.h)
       if (ws.z > 0.0f) {
         const float3 h = normalize(wo + ws);
         const float pdf = ggx_d(h.z * h.z, ggx_sin2(nrm, h), a2) * h.z / (4.0f * dot(wo, h));
-        row_s += brdf_terms(nrm, wo, ws, r, 0).spec * ws.z / pdf;
+        row_s += brdf_at(&v, ws, 0).spec * ws.z / pdf;
       }
     }
     diffuse += row_d / ((float)m * (float)m);

@@ -347,9 +347,10 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
 // These kernels are compiled in either mode; the renderer launches them with SCATTERING_BRDF = 1 only.
 
 typedef struct {
-  float3 wo, wl, n, albedo;
-  float roughness, inv_len;  // 1 / |n_raw| (0 for a zero normal, which scatters nothing)
-  float3 direct;             // V I / |p_l - x|^2
+  BrdfView brdf;  // unit normal n, w_o, roughness and what the BRDF derives from them once per sample
+  float3 wl, albedo;
+  float3 direct;  // V I / |p_l - x|^2
+  float inv_len;  // 1 / |n_raw| (0 for a zero normal, which scatters nothing)
 } SurfacePoint;
 
 inline SurfacePoint surface_point(__global const float* ray, __global const float* t, __global const float* props,
@@ -359,16 +360,14 @@ inline SurfacePoint surface_point(__global const float* ray, __global const floa
   const float3 d = (float3)(ray[4], ray[5], ray[6]);
   const float3 to_light = (float3)(ray[8], ray[9], ray[10]) - fma((float3)(t[s]), d, o);
   const float r2 = dot(to_light, to_light);
-  p.wo = -d;
   p.wl = to_light * rsqrt(r2);
   p.direct = (float3)(ray[12], ray[13], ray[14]) * (TILED(props, PROP_COLS, s, 5) / r2);
   const float3 m = (float3)(TILED(props, PROP_COLS, s, NORMAL_COL), TILED(props, PROP_COLS, s, NORMAL_COL + 1),
                             TILED(props, PROP_COLS, s, NORMAL_COL + 2));
   const float len2 = dot(m, m);
   p.inv_len = len2 > 0.0f ? rsqrt(len2) : 0.0f;
-  p.n = m * p.inv_len;
+  p.brdf = brdf_view(m * p.inv_len, -d, TILED(props, PROP_COLS, s, 4));
   p.albedo = (float3)(TILED(props, PROP_COLS, s, 1), TILED(props, PROP_COLS, s, 2), TILED(props, PROP_COLS, s, 3));
-  p.roughness = TILED(props, PROP_COLS, s, 4);
   return p;
 }
 
@@ -396,17 +395,17 @@ __kernel void render_radiance_brdf(const uint n, __global const float* restrict 
   if (s >= n) return;
   const SurfacePoint p = surface_point(rays + (size_t)(s / N_SAMPLES) * RAY_FLOATS, t, props, s);
   float3 diffuse = 0.0f, spec = 0.0f;  // sum of diffuse cos L, of spec cos L
-  BrdfTerms b = brdf_terms(p.n, p.wo, p.wl, p.roughness, 0);
-  float c_i = fmax(dot(p.n, p.wl), 0.0f);
+  BrdfTerms b = brdf_at(&p.brdf, p.wl, 0);
+  float c_i = fmax(dot(p.brdf.n, p.wl), 0.0f);
   diffuse = b.diffuse * c_i * p.direct;
   spec = b.spec * c_i * p.direct;
 #if N_ENV > 0
   for (uint j = 0; j < N_ENV; ++j) {
     const float3 w = tiled_dir(env_dirs, j);
-    b = brdf_terms(p.n, p.wo, w, p.roughness, 0);
+    b = brdf_at(&p.brdf, w, 0);
     if (b.diffuse == 0.0f && b.spec == 0.0f) continue;  // below the surface
     const float3 L = TILED(props, PROP_COLS, s, ENV_COL + j) * tiled_dir(env_weights, j);
-    c_i = dot(p.n, w);
+    c_i = dot(p.brdf.n, w);
     diffuse = fma((float3)(b.diffuse * c_i), L, diffuse);
     spec = fma((float3)(b.spec * c_i), L, spec);
   }
@@ -417,10 +416,10 @@ __kernel void render_radiance_brdf(const uint n, __global const float* restrict 
   const float w_k = 4.0f * M_PI_F / N_DIRS;
   for (uint k = 0; k < N_DIRS; ++k) {
     const float3 w = tiled_dir(dirs, k);
-    b = brdf_terms(p.n, p.wo, w, p.roughness, 0);
+    b = brdf_at(&p.brdf, w, 0);
     if (b.diffuse == 0.0f && b.spec == 0.0f) continue;
     const float3 L = w_k * fmax(sh_expand3(c, sh_basis, k), 0.0f);
-    c_i = dot(p.n, w);
+    c_i = dot(p.brdf.n, w);
     diffuse = fma((float3)(b.diffuse * c_i), L, diffuse);
     spec = fma((float3)(b.spec * c_i), L, spec);
   }
@@ -437,9 +436,9 @@ __kernel void render_radiance_brdf(const uint n, __global const float* restrict 
 inline float3 brdf_term_backward(const SurfacePoint* p, float3 w, float3 L, float3 e, float3* diffuse, float* d_r,
                                  float3* d_n) {
   BrdfGrad g;
-  const BrdfTerms b = brdf_terms(p->n, p->wo, w, p->roughness, &g);
+  const BrdfTerms b = brdf_at(&p->brdf, w, &g);
   if (b.diffuse == 0.0f && b.spec == 0.0f) return (float3)(0.0f);  // below the surface: zero nearby too
-  const float c = dot(p->n, w);
+  const float c = dot(p->brdf.n, w);
   *diffuse = fma((float3)(b.diffuse * c), L, *diffuse);
   const float e_d = dot(e * p->albedo, L), e_s = dot(e, L);  // upstream weights of diffuse cos, spec cos
   *d_r += c * (e_d * g.d_diffuse_dr + e_s * g.d_spec_dr);
@@ -479,9 +478,11 @@ __kernel void render_radiance_brdf_backward(const uint n, __global const float* 
   }
   const float w_k = 4.0f * M_PI_F / N_DIRS;
   for (uint k = 0; k < N_DIRS; ++k) {
+    const float3 w = tiled_dir(dirs, k);
+    if (dot(p.brdf.n, w) <= 0.0f || p.brdf.n_v <= 0.0f) continue;  // below the surface: no light, no gradient
     const float3 lk = sh_expand3(c, sh_basis, k);
     const float3 L = w_k * fmax(lk, 0.0f);
-    const float3 dl = brdf_term_backward(&p, tiled_dir(dirs, k), L, e, &diffuse, &d_r, &d_n);
+    const float3 dl = brdf_term_backward(&p, w, L, e, &diffuse, &d_r, &d_n);
     // d/dc_j of w_k max(0, l_k): w_k Y_j where l_k > 0.
     const float3 g = w_k * select((float3)(0.0f), dl, isgreater(lk, (float3)(0.0f)));
     if (g.x == 0.0f && g.y == 0.0f && g.z == 0.0f) continue;
@@ -501,7 +502,7 @@ __kernel void render_radiance_brdf_backward(const uint n, __global const float* 
   TILED(d_props, PROP_COLS, s, 4) = d_r;
   TILED(d_props, PROP_COLS, s, 5) = 0.0f;
   // Through n = n_raw / |n_raw|: (I - n n^T) / |n_raw|.
-  const float3 d_m = (d_n - p.n * dot(p.n, d_n)) * p.inv_len;
+  const float3 d_m = (d_n - p.brdf.n * dot(p.brdf.n, d_n)) * p.inv_len;
   TILED(d_props, PROP_COLS, s, NORMAL_COL) = d_m.x;
   TILED(d_props, PROP_COLS, s, NORMAL_COL + 1) = d_m.y;
   TILED(d_props, PROP_COLS, s, NORMAL_COL + 2) = d_m.z;
