@@ -14,7 +14,7 @@
 //   SCATTERING_BRDF = 1 (solids): column 4 is the roughness r, and NORMAL_COL + 0..2 (= ENV_COL + N_ENV ..)
 //   the raw normal; see "scattering brdf" below
 // Radiance (BatchMatrix, 3 columns): a_i ⊙ S_i, the light each sample sends toward the camera per unit
-// extinction-weighted density.
+// extinction-weighted density (with SCATTERING_BRDF: the BRDF-weighted light, one work-item per sample).
 //
 //   S_dir = p(w_o, w_l; g) V I / |p_l - x|^2
 //   S_env = sum_j p(w_o, w_j; g) V_j weight_j,  weight_j = E(w_j) / (pdf(w_j) N_ENV)   (N_ENV > 0; RGB weights)
