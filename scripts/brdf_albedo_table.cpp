@@ -3,8 +3,8 @@
 // (docs/method.md, "The BRDF"). The quadrature is the host reference's (tests/support/brdf_reference.hpp),
 // which the tests also check the table against. Regenerate after changing the specular lobe:
 //
-//   g++ -O2 -std=c++17 -o /tmp/brdf_albedo_table scripts/brdf_albedo_table.cpp
-//   /tmp/brdf_albedo_table > kernels/brdf_albedo.clh
+//   g++ -O2 -std=c++17 -o build/brdf_albedo_table scripts/brdf_albedo_table.cpp
+//   build/brdf_albedo_table > kernels/brdf_albedo.clh
 #define RELIT_BRDF_TABLE_GENERATOR
 #include "../tests/support/brdf_reference.hpp"
 
