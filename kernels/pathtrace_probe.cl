@@ -35,6 +35,45 @@ __kernel void probe_brdf_eval(const uint n, __global const float4* pairs, const 
   out[i] = (float4)(brdf_eval(nrm, a.xyz, b.xyz, base.xyz, a.w), 0.0f);
 }
 
+// out[i] = f(wo, wi) max(0, n.wi) (RGB) for records rec[4i .. 4i+3] = (n, roughness), wo, wi, albedo: the
+// BRDF the path tracer shades solids with, for comparison with the neural renderer's "brdf" mode.
+__kernel void probe_brdf_cos(const uint n, __global const float4* rec, __global float4* out) {
+  const size_t i = get_global_id(0);
+  if (i >= n) return;
+  const float3 nrm = rec[4 * i].xyz, wo = rec[4 * i + 1].xyz, wi = rec[4 * i + 2].xyz;
+  out[i] = (float4)(brdf_eval(nrm, wo, wi, rec[4 * i + 3].xyz, rec[4 * i].w) * fmax(dot(nrm, wi), 0.0f), 0.0f);
+}
+
+// The directional albedo int f(wo, wi) n.wi dwi at albedo 1 (the white furnace of a surface), per case
+// (wo.xyz, roughness), normal +z, as a deterministic quadrature over the path tracer's own sampler: the
+// diffuse term over its cosine half and the specular term over its GGX half, each on a stratified m x m grid
+// of (u1, u2) and divided by that half's own density, so each integrand is smooth in (u1, u2).
+__kernel void probe_brdf_albedo(const uint n, __global const float4* cases, const uint m, __global float* out) {
+  const size_t i = get_global_id(0);
+  if (i >= n) return;
+  const float3 nrm = (float3)(0.0f, 0.0f, 1.0f), wo = cases[i].xyz;
+  const float r = cases[i].w, a2 = r * r * r * r;
+  const BrdfView v = brdf_view(nrm, wo, r);
+  float diffuse = 0.0f, spec = 0.0f;
+  for (uint a = 0; a < m; ++a) {
+    float row_d = 0.0f, row_s = 0.0f;  // rows summed apart keep the float sums accurate
+    for (uint b = 0; b < m; ++b) {
+      const float u1 = (a + 0.5f) / m, u2 = (b + 0.5f) / m;
+      const float3 wd = brdf_sample(nrm, wo, r, 0.25f, u1, u2);  // cosine half: pdf n.wi / pi
+      row_d += brdf_at(&v, wd, 0).diffuse * M_PI_F;
+      const float3 ws = brdf_sample(nrm, wo, r, 0.75f, u1, u2);  // GGX half: pdf D n.h / (4 wo.h)
+      if (ws.z > 0.0f) {
+        const float3 h = normalize(wo + ws);
+        const float pdf = ggx_d(h.z * h.z, ggx_sin2(nrm, h), a2) * h.z / (4.0f * dot(wo, h));
+        row_s += brdf_at(&v, ws, 0).spec * ws.z / pdf;
+      }
+    }
+    diffuse += row_d / ((float)m * (float)m);
+    spec += row_s / ((float)m * (float)m);
+  }
+  out[i] = diffuse + spec;
+}
+
 #define PROBE_SCENE_ARGS                                                                                   \
   __global const float *density, const int4 density_dims, const float density_scale,                      \
       __global const float *majorant, const int4 majorant_dims, __global const float4 *env,                 \

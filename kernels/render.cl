@@ -11,8 +11,10 @@
 // Sample properties (BatchMatrix columns):
 //   0 sigma  1-3 albedo  4 g  5 visibility (point light)  6.. SH coefficients, channel-major: c[ch * N_SH + j]
 //   ENV_COL + j (= 6 + 3 N_SH + j): visibility toward environment direction j, j < N_ENV
+//   SCATTERING_BRDF = 1 (solids): column 4 is the roughness r, and NORMAL_COL + 0..2 (= ENV_COL + N_ENV ..)
+//   the raw normal; see "scattering brdf" below
 // Radiance (BatchMatrix, 3 columns): a_i ⊙ S_i, the light each sample sends toward the camera per unit
-// extinction-weighted density.
+// extinction-weighted density (with SCATTERING_BRDF: the BRDF-weighted light, one work-item per sample).
 //
 //   S_dir = p(w_o, w_l; g) V I / |p_l - x|^2
 //   S_env = sum_j p(w_o, w_j; g) V_j weight_j,  weight_j = E(w_j) / (pdf(w_j) N_ENV)   (N_ENV > 0; RGB weights)
@@ -23,6 +25,7 @@
 // environment directions and weights (N_ENV x 3 tiled each) are drawn once per iteration for the whole batch
 // (environment.cl); with N_ENV = 0 the environment is compiled out and its arguments are unused.
 // Directions point away from the sample (seed appendix A); w_o = -d. HG with the seed's +2g convention.
+#include "brdf.clh"
 #include "common.clh"
 #include "geometry.clh"
 
@@ -41,9 +44,13 @@
 #ifndef N_ENV
 #define N_ENV 0
 #endif
+#ifndef SCATTERING_BRDF
+#define SCATTERING_BRDF 0
+#endif
 #define RAY_FLOATS 20
 #define ENV_COL (6 + 3 * N_SH)
-#define PROP_COLS (6 + 3 * N_SH + N_ENV)
+#define NORMAL_COL (ENV_COL + N_ENV)
+#define PROP_COLS (NORMAL_COL + 3 * SCATTERING_BRDF)
 #define INV_4PI 0.07957747154594767f
 
 // Samples of one tile as float16: 16 consecutive floats of the tiled layout.
@@ -326,6 +333,179 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   TILE_STORE(db * s_b, d_props, tile, PROP_COLS, 3);
   TILE_STORE(d_g, d_props, tile, PROP_COLS, 4);
   TILE_STORE((float16)(0.0f), d_props, tile, PROP_COLS, 5);
+}
+
+// ---- per-sample radiance, scattering "brdf" (solids, DESIGN §4.4) -------------------------------------------
+//
+// The light a surface sample sends toward the camera: each light term adds f(w_o, w_i) max(0, n.w_i) L(w_i)
+// with f = a * diffuse + spec the BRDF of brdf.clh (the path tracer's), n = n_raw / |n_raw|:
+//   point light   L = V I / |p_l - x|^2
+//   environment   L_j = V_j weight_j                                      (N_ENV > 0)
+//   indirect      L_k = (4 pi / K) max(0, sum_j c_j Y_j(w_k))              (the K-direction sum; no closed form)
+// so radiance = a ⊙ sum diffuse cos L + sum spec cos L (the specular part is not scaled by the albedo).
+// One work-item per sample, scalar: the BRDF is written for one direction pair, as the path tracer needs it.
+// These kernels are compiled in either mode; the renderer launches them with SCATTERING_BRDF = 1 only.
+
+typedef struct {
+  BrdfView brdf;  // unit normal n, w_o, roughness and what the BRDF derives from them once per sample
+  float3 wl, albedo;
+  float3 direct;  // V I / |p_l - x|^2
+  float inv_len;  // 1 / |n_raw| (0 for a zero normal, which scatters nothing)
+} SurfacePoint;
+
+inline SurfacePoint surface_point(__global const float* ray, __global const float* t, __global const float* props,
+                                  uint s) {
+  SurfacePoint p;
+  const float3 o = (float3)(ray[0], ray[1], ray[2]);
+  const float3 d = (float3)(ray[4], ray[5], ray[6]);
+  const float3 to_light = (float3)(ray[8], ray[9], ray[10]) - fma((float3)(t[s]), d, o);
+  const float r2 = dot(to_light, to_light);
+  p.wl = to_light * rsqrt(r2);
+  p.direct = (float3)(ray[12], ray[13], ray[14]) * (TILED(props, PROP_COLS, s, 5) / r2);
+  const float3 m = (float3)(TILED(props, PROP_COLS, s, NORMAL_COL), TILED(props, PROP_COLS, s, NORMAL_COL + 1),
+                            TILED(props, PROP_COLS, s, NORMAL_COL + 2));
+  const float len2 = dot(m, m);
+  p.inv_len = len2 > 0.0f ? rsqrt(len2) : 0.0f;
+  p.brdf = brdf_view(m * p.inv_len, -d, TILED(props, PROP_COLS, s, 4));
+  p.albedo = (float3)(TILED(props, PROP_COLS, s, 1), TILED(props, PROP_COLS, s, 2), TILED(props, PROP_COLS, s, 3));
+  return p;
+}
+
+inline float3 tiled_dir(__global const float* dirs, uint k) {
+  return (float3)(TILED(dirs, 3, k, 0), TILED(dirs, 3, k, 1), TILED(dirs, 3, k, 2));
+}
+
+#if N_SH > 0
+// sum_j c_j Y_j(w_k) per channel, before the clamp.
+inline float3 sh_expand3(const float* c, __global const float* sh_basis, uint k) {
+  float3 l = 0.0f;
+  for (uint j = 0; j < N_SH; ++j) {
+    const float y = TILED(sh_basis, N_SH, k, j);
+    l = fma((float3)(c[j], c[N_SH + j], c[2 * N_SH + j]), (float3)(y), l);
+  }
+  return l;
+}
+#endif
+
+__kernel void render_radiance_brdf(const uint n, __global const float* restrict rays, __global const float* restrict t,
+                                   __global const float* restrict props, __global const float* restrict dirs,
+                                   __global const float* restrict sh_basis, __global const float* restrict env_dirs,
+                                   __global const float* restrict env_weights, __global float* restrict radiance) {
+  const uint s = get_global_id(0);
+  if (s >= n) return;
+  const SurfacePoint p = surface_point(rays + (size_t)(s / N_SAMPLES) * RAY_FLOATS, t, props, s);
+  float3 diffuse = 0.0f, spec = 0.0f;  // sum of diffuse cos L, of spec cos L
+  BrdfTerms b = brdf_at(&p.brdf, p.wl, 0);
+  float c_i = fmax(dot(p.brdf.n, p.wl), 0.0f);
+  diffuse = b.diffuse * c_i * p.direct;
+  spec = b.spec * c_i * p.direct;
+#if N_ENV > 0
+  for (uint j = 0; j < N_ENV; ++j) {
+    const float3 w = tiled_dir(env_dirs, j);
+    b = brdf_at(&p.brdf, w, 0);
+    if (b.diffuse == 0.0f && b.spec == 0.0f) continue;  // below the surface
+    const float3 L = TILED(props, PROP_COLS, s, ENV_COL + j) * tiled_dir(env_weights, j);
+    c_i = dot(p.brdf.n, w);
+    diffuse = fma((float3)(b.diffuse * c_i), L, diffuse);
+    spec = fma((float3)(b.spec * c_i), L, spec);
+  }
+#endif
+#if N_SH > 0
+  float c[3 * N_SH];
+  for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILED(props, PROP_COLS, s, 6 + j);
+  const float w_k = 4.0f * M_PI_F / N_DIRS;
+  for (uint k = 0; k < N_DIRS; ++k) {
+    const float3 w = tiled_dir(dirs, k);
+    b = brdf_at(&p.brdf, w, 0);
+    if (b.diffuse == 0.0f && b.spec == 0.0f) continue;
+    const float3 L = w_k * fmax(sh_expand3(c, sh_basis, k), 0.0f);
+    c_i = dot(p.brdf.n, w);
+    diffuse = fma((float3)(b.diffuse * c_i), L, diffuse);
+    spec = fma((float3)(b.spec * c_i), L, spec);
+  }
+#endif
+  const float3 rad = fma(p.albedo, diffuse, spec);
+  TILED(radiance, 3, s, 0) = rad.x;
+  TILED(radiance, 3, s, 1) = rad.y;
+  TILED(radiance, 3, s, 2) = rad.z;
+}
+
+// One light term's share of the backward pass: e = dL/d(radiance), L the term's incident light. Adds the
+// albedo's factor (diffuse cos L) and the gradients in r and in the unit normal; returns dL/dL per channel,
+// e ⊙ (a diffuse + spec) cos, for the indirect terms' SH coefficients.
+inline float3 brdf_term_backward(const SurfacePoint* p, float3 w, float3 L, float3 e, float3* diffuse, float* d_r,
+                                 float3* d_n) {
+  BrdfGrad g;
+  const BrdfTerms b = brdf_at(&p->brdf, w, &g);
+  if (b.diffuse == 0.0f && b.spec == 0.0f) return (float3)(0.0f);  // below the surface: zero nearby too
+  const float c = dot(p->brdf.n, w);
+  *diffuse = fma((float3)(b.diffuse * c), L, *diffuse);
+  const float e_d = dot(e * p->albedo, L), e_s = dot(e, L);  // upstream weights of diffuse cos, spec cos
+  *d_r += c * (e_d * g.d_diffuse_dr + e_s * g.d_spec_dr);
+  *d_n += e_d * fma((float3)(c), g.d_diffuse_dn, b.diffuse * w) + e_s * fma((float3)(c), g.d_spec_dn, b.spec * w);
+  return e * fma(p->albedo, (float3)(b.diffuse), (float3)(b.spec)) * c;
+}
+
+// Given dL/d(radiance): dL/d(albedo), dL/dr, dL/d(SH coefficients) and dL/d(n_raw) into d_props; sigma's
+// column is written by the compositing backward; every visibility column gets zero (gradient isolation).
+__kernel void render_radiance_brdf_backward(const uint n, __global const float* restrict rays,
+                                            __global const float* restrict t, __global const float* restrict props,
+                                            __global const float* restrict dirs,
+                                            __global const float* restrict sh_basis,
+                                            __global const float* restrict env_dirs,
+                                            __global const float* restrict env_weights,
+                                            __global const float* restrict d_radiance,
+                                            __global float* restrict d_props) {
+  const uint s = get_global_id(0);
+  if (s >= n) return;
+  const SurfacePoint p = surface_point(rays + (size_t)(s / N_SAMPLES) * RAY_FLOATS, t, props, s);
+  const float3 e = (float3)(TILED(d_radiance, 3, s, 0), TILED(d_radiance, 3, s, 1), TILED(d_radiance, 3, s, 2));
+  float3 diffuse = 0.0f, d_n = 0.0f;
+  float d_r = 0.0f;
+  brdf_term_backward(&p, p.wl, p.direct, e, &diffuse, &d_r, &d_n);
+#if N_ENV > 0
+  for (uint j = 0; j < N_ENV; ++j) {
+    const float3 L = TILED(props, PROP_COLS, s, ENV_COL + j) * tiled_dir(env_weights, j);
+    brdf_term_backward(&p, tiled_dir(env_dirs, j), L, e, &diffuse, &d_r, &d_n);
+    TILED(d_props, PROP_COLS, s, ENV_COL + j) = 0.0f;
+  }
+#endif
+#if N_SH > 0
+  float c[3 * N_SH], dc[3 * N_SH];
+  for (uint j = 0; j < 3 * N_SH; ++j) {
+    c[j] = TILED(props, PROP_COLS, s, 6 + j);
+    dc[j] = 0.0f;
+  }
+  const float w_k = 4.0f * M_PI_F / N_DIRS;
+  for (uint k = 0; k < N_DIRS; ++k) {
+    const float3 w = tiled_dir(dirs, k);
+    if (dot(p.brdf.n, w) <= 0.0f || p.brdf.n_v <= 0.0f) continue;  // below the surface: no light, no gradient
+    const float3 lk = sh_expand3(c, sh_basis, k);
+    const float3 L = w_k * fmax(lk, 0.0f);
+    const float3 dl = brdf_term_backward(&p, w, L, e, &diffuse, &d_r, &d_n);
+    // d/dc_j of w_k max(0, l_k): w_k Y_j where l_k > 0.
+    const float3 g = w_k * select((float3)(0.0f), dl, isgreater(lk, (float3)(0.0f)));
+    if (g.x == 0.0f && g.y == 0.0f && g.z == 0.0f) continue;
+    for (uint j = 0; j < N_SH; ++j) {
+      const float y = TILED(sh_basis, N_SH, k, j);
+      dc[j] = fma(g.x, y, dc[j]);
+      dc[N_SH + j] = fma(g.y, y, dc[N_SH + j]);
+      dc[2 * N_SH + j] = fma(g.z, y, dc[2 * N_SH + j]);
+    }
+  }
+  for (uint j = 0; j < 3 * N_SH; ++j) TILED(d_props, PROP_COLS, s, 6 + j) = dc[j];
+#endif
+  const float3 d_albedo = e * diffuse;
+  TILED(d_props, PROP_COLS, s, 1) = d_albedo.x;
+  TILED(d_props, PROP_COLS, s, 2) = d_albedo.y;
+  TILED(d_props, PROP_COLS, s, 3) = d_albedo.z;
+  TILED(d_props, PROP_COLS, s, 4) = d_r;
+  TILED(d_props, PROP_COLS, s, 5) = 0.0f;
+  // Through n = n_raw / |n_raw|: (I - n n^T) / |n_raw|.
+  const float3 d_m = (d_n - p.brdf.n * dot(p.brdf.n, d_n)) * p.inv_len;
+  TILED(d_props, PROP_COLS, s, NORMAL_COL) = d_m.x;
+  TILED(d_props, PROP_COLS, s, NORMAL_COL + 1) = d_m.y;
+  TILED(d_props, PROP_COLS, s, NORMAL_COL + 2) = d_m.z;
 }
 
 // ---- compositing ------------------------------------------------------------------------------------------

@@ -10,7 +10,9 @@
 #include <Eigen/Core>
 
 #include <cmath>
+#include <functional>
 #include <random>
+#include <string>
 
 namespace relit {
 
@@ -32,7 +34,7 @@ struct DeviceRun {
 
 DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::vector<float>& d_color,
                      bool closed_form = false, const render::EnvironmentSamples* env = nullptr) {
-  VolumeRenderer renderer(dev, {s.n_samples, lmax, s.n_dirs, closed_form, s.n_env});
+  VolumeRenderer renderer(dev, {s.n_samples, lmax, s.n_dirs, closed_form, s.n_env, s.brdf ? "brdf" : "phase"});
   const std::uint32_t n = s.n_rays * s.n_samples;
   Buffer<float> rays(dev, s.rays), t(dev, n), delta(dev, n), color(dev, 3 * s.n_rays), trans(dev, s.n_rays),
       dcol(dev, d_color);
@@ -48,6 +50,24 @@ DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::
   return {color.read(), trans.read(), dprops.download_row_major()};
 }
 
+// The colour of the scene with every sample's light contribution removed (what the background alone gives
+// through the same densities): the difference shows how much a comparison is about the scattered light.
+double mean_scattered(const RayScene& s) {
+  RayScene dark = s;
+  for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i) {
+    double* p = &dark.props[i * s.cols()];
+    for (int c = 1; c <= 3; ++c) p[c] = 0;  // no albedo: only the specular part remains in "brdf"
+    p[render::kVisibility] = 0;
+    for (std::uint32_t j = 0; j < s.n_env; ++j) p[s.env_col() + j] = 0;
+    for (std::uint32_t j = 0; j < 3 * s.n_sh; ++j) p[6 + j] = 0;
+    if (s.brdf) p[s.normal_col()] = p[s.normal_col() + 1] = p[s.normal_col() + 2] = 0;  // scatters nothing
+  }
+  const auto lit = reference_color(s, s.props), bg = reference_color(dark, dark.props);
+  double sum = 0;
+  for (std::size_t i = 0; i < lit.size(); ++i) sum += (lit[i] - bg[i]) / lit.size();
+  return sum;
+}
+
 // Random weights w for the scalar loss L = sum w . colour.
 std::vector<float> random_weights(std::size_t n, unsigned seed) {
   std::mt19937 rng(seed);
@@ -59,6 +79,7 @@ std::vector<float> random_weights(std::size_t n, unsigned seed) {
 
 // Checks the device's dL/dproperties against central differences of the double reference, on every
 // `stride`-th sample; every visibility column (point light and environment) must get exactly zero gradient.
+// In scattering "brdf" that covers albedo, roughness, SH coefficients, sigma and the raw normal.
 // Returns the number of values checked.
 int expect_gradients_match_finite_differences(const RayScene& s, const std::vector<float>& w,
                                               const std::vector<float>& d_props, bool closed_form,
@@ -77,7 +98,7 @@ int expect_gradients_match_finite_differences(const RayScene& s, const std::vect
       auto plus = s.props, minus = s.props;
       plus[smp * cols + f] += h;
       minus[smp * cols + f] -= h;
-      if (f == render::kVisibility || f >= s.env_col()) {
+      if (f == render::kVisibility || (f >= s.env_col() && f < s.normal_col())) {
         EXPECT_EQ(d_props[smp * cols + f], 0.0f) << "sample " << smp << " visibility column " << f;
       } else {
         const double fd = (loss(plus) - loss(minus)) / (2 * h);
@@ -380,6 +401,165 @@ TEST(VolumeRendererEnvironment, EnvironmentSamplesAreRequiredExactlyWithEnvironm
                  "n_env_dirs");
   EXPECT_NO_THROW(with_env.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans, &env4));
   dev.finish();  // leave no work queued when the process exits
+}
+
+// ---- scattering "brdf" (solids, "Ours + BRDF", DESIGN §4.4) -----------------------------------------------
+
+namespace {
+
+RendererSettings brdf_settings(std::uint32_t n_samples, int lmax, std::uint32_t n_dirs, std::uint32_t n_env = 0) {
+  RendererSettings rs{n_samples, lmax, n_dirs, false, n_env};
+  rs.scattering = "brdf";
+  return rs;
+}
+
+void expect_invalid_argument(const std::function<void()>& call, const std::string& part) {
+  try {
+    call();
+    ADD_FAILURE() << "expected InvalidArgument mentioning '" << part << "'";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+
+TEST(VolumeRendererBrdf, PropertyColumnsEndWithTheRawNormal) {
+  const Device dev = test::test_device();
+  static_assert(render::normal_column(4, 8) == 6 + 12 + 8);
+  static_assert(render::kRoughness == render::kG);
+  const VolumeRenderer plain(dev, brdf_settings(16, 1, 8)), with_env(dev, brdf_settings(16, 1, 8, 8));
+  EXPECT_TRUE(plain.brdf());
+  EXPECT_EQ(plain.normal_col(), 6u + 12u);
+  EXPECT_EQ(plain.prop_cols(), 6u + 12u + 3u);
+  EXPECT_EQ(with_env.env_visibility_col(), 18u);
+  EXPECT_EQ(with_env.normal_col(), render::normal_column(4, 8));
+  EXPECT_EQ(with_env.prop_cols(), 18u + 8u + 3u);
+  const VolumeRenderer phase(dev, {16, 1, 8, false, 8});
+  EXPECT_FALSE(phase.brdf());
+  EXPECT_EQ(phase.prop_cols(), phase.normal_col());  // no normal columns in phase mode
+  // A property matrix without the normal's columns is an error that names them.
+  Buffer<float> rays(dev, kRayFloats), t(dev, 16), delta(dev, 16), color(dev, 3), trans(dev, 1);
+  BatchMatrix props(dev, 16, phase.prop_cols() - 8), rad(dev, 16, 3), dirs(dev, 8, 3), basis(dev, 8, 4);
+  expect_invalid_argument([&] { plain.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans); },
+                          "3 normal columns");
+  dev.finish();
+}
+
+TEST(VolumeRendererBrdf, ClosedFormIndirectAndUnknownScatteringAreErrors) {
+  const Device dev = test::test_device();
+  RendererSettings rs = brdf_settings(16, 1, 8);
+  rs.closed_form_indirect = true;
+  expect_invalid_argument([&] { VolumeRenderer(dev, rs); }, "closed_form_indirect");
+  rs.closed_form_indirect = false;
+  rs.scattering = "BRDF";
+  expect_invalid_argument([&] { VolumeRenderer(dev, rs); }, "\"phase\" (media) or \"brdf\" (solids)");
+}
+
+TEST(VolumeRendererBrdf, ForwardMatchesDoubleReference) {
+  for (const int lmax : {-1, 1}) {
+    const RayScene s = random_scene(7, 32, lmax, 16, 61 + lmax, 0, true);
+    const auto got = run_device(test::test_device(), s, lmax, std::vector<float>(3 * s.n_rays, 1.f));
+    const auto ref = reference_color(s, s.props);
+    for (std::size_t i = 0; i < ref.size(); ++i)
+      EXPECT_NEAR(got.color[i], ref[i], 2e-5 * std::abs(ref[i]) + 1e-6) << "lmax " << lmax << " value " << i;
+    EXPECT_GT(mean_scattered(s), 0.5) << "the scattered light must show for the comparison to mean something";
+  }
+}
+
+TEST(VolumeRendererBrdf, ForwardWithEnvironmentMatchesDoubleReference) {
+  const Device dev = test::test_device();
+  const EnvironmentLight light = random_environment(16, 8, 3);
+  for (const int lmax : {-1, 1}) {
+    RayScene s = random_scene(7, 32, lmax, 16, 71 + lmax, 32, true);
+    render::EnvironmentSamples env(dev, light, 32);
+    env.draw(8, 2);
+    attach(s, env);
+    const auto got = run_device(dev, s, lmax, std::vector<float>(3 * s.n_rays, 1.f), false, &env);
+    const auto ref = reference_color(s, s.props);
+    RayScene dark = s;  // every environment direction occluded
+    for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i)
+      for (std::uint32_t j = 0; j < s.n_env; ++j) dark.props[i * s.cols() + s.env_col() + j] = 0;
+    const auto ref_dark = reference_color(dark, dark.props);
+    double env_part = 0;
+    for (std::size_t i = 0; i < ref.size(); ++i) {
+      EXPECT_NEAR(got.color[i], ref[i], 2e-5 * std::abs(ref[i]) + 1e-6) << "lmax " << lmax << " value " << i;
+      env_part += (ref[i] - ref_dark[i]) / ref.size();
+    }
+    EXPECT_GT(env_part, 0.05) << "the environment must contribute visibly for the comparison to mean something";
+  }
+}
+
+TEST(VolumeRendererBrdf, BackwardMatchesFiniteDifferencesOfTheReference) {
+  const int lmax = 1;
+  const RayScene s = random_scene(3, 16, lmax, 8, 15, 0, true);
+  const auto w = random_weights(3 * s.n_rays, 13);
+  const auto got = run_device(test::test_device(), s, lmax, w);
+  EXPECT_GT(expect_gradients_match_finite_differences(s, w, got.d_props, false, 3), 200);
+  // The checks must be about something: the roughness and the normal get gradient on most samples.
+  int rough = 0, normal = 0;
+  for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i) {
+    rough += got.d_props[i * s.cols() + render::kRoughness] != 0.0f;
+    normal += got.d_props[i * s.cols() + s.normal_col()] != 0.0f;
+  }
+  EXPECT_GT(rough, 24);
+  EXPECT_GT(normal, 24);
+}
+
+TEST(VolumeRendererBrdf, BackwardWithEnvironmentMatchesFiniteDifferencesAndIsolatesVisibility) {
+  const Device dev = test::test_device();
+  const int lmax = 1;
+  RayScene s = random_scene(3, 16, lmax, 8, 16, 8, true);
+  render::EnvironmentSamples env(dev, random_environment(8, 4, 6), 8);
+  env.draw(2, 5);
+  attach(s, env);
+  const auto w = random_weights(3 * s.n_rays, 14);
+  const auto got = run_device(dev, s, lmax, w, false, &env);
+  EXPECT_GT(expect_gradients_match_finite_differences(s, w, got.d_props, false, 5), 200);
+  for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i) {
+    ASSERT_EQ(got.d_props[i * s.cols() + render::kVisibility], 0.0f) << i;
+    for (std::uint32_t j = 0; j < s.n_env; ++j) ASSERT_EQ(got.d_props[i * s.cols() + s.env_col() + j], 0.0f) << i;
+  }
+}
+
+// The renderer's "brdf" mode and the path tracer shade with the same BRDF: each sample's radiance under a
+// point light equals the path tracer's f(w_o, w_l) max(0, n.w_l) (probe kernel) times V I / |p_l - x|^2.
+TEST(VolumeRendererBrdf, RadianceMatchesThePathTracersBrdf) {
+  const Device dev = test::test_device();
+  const RayScene s = random_scene(8, 16, -1, 4, 81, 0, true);
+  const std::uint32_t n = s.n_rays * s.n_samples;
+  VolumeRenderer renderer(dev, brdf_settings(16, -1, 4));
+  Buffer<float> rays(dev, s.rays), t(dev, n), delta(dev, n), color(dev, 3 * s.n_rays), trans(dev, s.n_rays);
+  BatchMatrix pos(dev, n, 3), props(dev, n, s.cols()), rad(dev, n, 3), dirs(dev, 4, 3), basis(dev, 4, 0);
+  props.upload_row_major(std::vector<float>(s.props.begin(), s.props.end()));
+  renderer.sample(rays, s.n_rays, false, 0, t, delta, pos);
+  renderer.forward(rays, s.n_rays, t, delta, props, dirs, basis, rad, color, trans);
+  const auto x = pos.download_row_major(), radiance = rad.download_row_major();
+  std::vector<cl_float4> records;
+  std::vector<Vec3> light;  // V I / |p_l - x|^2 per sample
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const float* ray = &s.rays[(i / s.n_samples) * kRayFloats];
+    const double* p = &s.props[i * s.cols()];
+    const Vec3 to_light = Vec3(ray[8], ray[9], ray[10]) - Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+    const Vec3 nrm = Vec3(p[s.normal_col()], p[s.normal_col() + 1], p[s.normal_col() + 2]).normalized();
+    const Vec3 wl = to_light.normalized();
+    records.push_back({{float(nrm.x()), float(nrm.y()), float(nrm.z()), float(p[render::kRoughness])}});
+    records.push_back({{-ray[4], -ray[5], -ray[6], 0}});
+    records.push_back({{float(wl.x()), float(wl.y()), float(wl.z()), 0}});
+    records.push_back({{float(p[1]), float(p[2]), float(p[3]), 0}});
+    light.push_back(p[render::kVisibility] / to_light.squaredNorm() * Vec3(ray[12], ray[13], ray[14]));
+  }
+  Buffer<cl_float4> in(dev, records), out(dev, n);
+  dev.kernel("pathtrace_probe.cl", "probe_brdf_cos").args(cl_uint(n), in, out).launch(n, 16);
+  const auto f_cos = out.read();
+  int lit = 0;
+  for (std::uint32_t i = 0; i < n; ++i)
+    for (int ch = 0; ch < 3; ++ch) {
+      const double expected = f_cos[i].s[ch] * light[i][ch];
+      EXPECT_NEAR(radiance[3 * i + ch], expected, 1e-4 * std::abs(expected) + 1e-6) << "sample " << i << " channel " << ch;
+      lit += ch == 0 && expected > 1e-3;
+    }
+  EXPECT_GT(lit, int(n / 3)) << "many samples must face both the camera and the light";
 }
 
 }  // namespace relit

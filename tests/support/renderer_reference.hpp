@@ -1,8 +1,11 @@
 // Double-precision host reference of the neural volume renderer's forward pass (DESIGN §4.2: stratum-centre
 // samples, HG phase, point light, environment directions, the K-direction indirect sum with its clamp or the
-// closed form, alpha compositing, background), with random scenes to run it on. Shared by the renderer's tests
-// and by `relit bench`'s verification step.
+// closed form, alpha compositing, background; and the "brdf" scattering of DESIGN §4.4 with the BRDF of
+// brdf_reference.hpp), with random scenes to run it on. Shared by the renderer's tests and by `relit bench`'s
+// verification step.
 #pragma once
+
+#include "brdf_reference.hpp"
 
 #include <relit/render/volume_renderer.hpp>
 #include <relit/sh.hpp>
@@ -30,15 +33,20 @@ struct RayScene {
   std::vector<double> props;  // row-major, n_rays * n_samples x (6 + 3 n_sh + n_env)
   std::vector<float> dirs, basis;
   std::vector<float> env_dirs, env_weights;  // n_env x 3 each, row-major
+  bool brdf = false;  // scattering "brdf": column 4 is the roughness, the last three the raw normal
   std::uint32_t env_col() const { return 6 + 3 * n_sh; }
-  std::uint32_t cols() const { return 6 + 3 * n_sh + n_env; }
+  std::uint32_t normal_col() const { return env_col() + n_env; }
+  std::uint32_t cols() const { return normal_col() + (brdf ? 3 : 0); }
 };
 
+// With `brdf`, column 4 is a roughness in [0.1, 0.95] and each sample ends in a raw normal of length 0.3 to
+// 2, mostly facing the camera (some face away and scatter nothing).
 inline RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int lmax, std::uint32_t n_dirs, unsigned seed,
-                      std::uint32_t n_env = 0) {
+                      std::uint32_t n_env = 0, bool brdf = false) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0, 1);
   RayScene s{n_rays, n_samples, lmax < 0 ? 0u : std::uint32_t((lmax + 1) * (lmax + 1)), n_dirs, n_env, {}, {}, {}, {}, {}, {}};
+  s.brdf = brdf;
   auto unit = [&] {
     Vec3 v(u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1);
     while (v.norm() < 0.1 || v.norm() > 1) v = Vec3(u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1);
@@ -58,10 +66,16 @@ inline RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int 
   for (std::uint32_t i = 0; i < n_rays * n_samples; ++i) {
     s.props.push_back(3 * u(rng));                                      // sigma
     for (int c = 0; c < 3; ++c) s.props.push_back(u(rng));              // albedo
-    s.props.push_back(1.8 * u(rng) - 0.9);                              // g
+    s.props.push_back(brdf ? 0.1 + 0.85 * u(rng) : 1.8 * u(rng) - 0.9);  // roughness or g
     s.props.push_back(u(rng));                                          // visibility
     for (std::uint32_t j = 0; j < 3 * s.n_sh; ++j) s.props.push_back(2 * u(rng) - 0.7);  // SH, both signs
     for (std::uint32_t j = 0; j < n_env; ++j) s.props.push_back(u(rng));                   // environment visibility
+    if (brdf) {
+      const float* ray = &s.rays[(i / n_samples) * kRayFloats];
+      const Vec3 wo = -Vec3(ray[4], ray[5], ray[6]);
+      const Vec3 n = (unit() + 0.7 * wo).normalized() * (0.3 + 1.7 * u(rng));
+      s.props.insert(s.props.end(), {n.x(), n.y(), n.z()});
+    }
   }
   for (std::uint32_t k = 0; k < n_dirs; ++k) {
     const Vec3 w = unit();
@@ -69,6 +83,34 @@ inline RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int 
     for (std::uint32_t j = 0; j < s.n_sh; ++j) s.basis.push_back(float(2 * u(rng) - 1));  // any basis values do
   }
   return s;
+}
+
+// Scattering "brdf": the light one sample (properties p) sends toward w_o, sum over the light terms of
+// f(w_o, w_i) max(0, n.w_i) L(w_i) with n = n_raw / |n_raw|; `to_light` = p_l - x, I the light's intensity.
+inline Vec3 brdf_radiance(const RayScene& s, const double* p, const Vec3& wo, const Vec3& to_light, const Vec3& I) {
+  const Vec3 m(p[s.normal_col()], p[s.normal_col() + 1], p[s.normal_col() + 2]);
+  if (m.norm() == 0) return Vec3::Zero();
+  const Dir3 n = {m.x() / m.norm(), m.y() / m.norm(), m.z() / m.norm()}, o = {wo.x(), wo.y(), wo.z()};
+  Vec3 rad = Vec3::Zero();
+  auto term = [&](const Vec3& wi, const Vec3& L) {
+    const Dir3 w = {wi.x(), wi.y(), wi.z()};
+    const double cos = std::max(0.0, dot3(n, w));
+    for (int ch = 0; ch < 3; ++ch) rad[ch] += brdf(n, o, w, p[1 + ch], p[4]) * cos * L[ch];
+  };
+  term(to_light.normalized(), p[5] / to_light.squaredNorm() * I);
+  for (std::uint32_t j = 0; j < s.n_env; ++j)
+    term(Vec3(s.env_dirs[3 * j], s.env_dirs[3 * j + 1], s.env_dirs[3 * j + 2]),
+         p[s.env_col() + j] * Vec3(s.env_weights[3 * j], s.env_weights[3 * j + 1], s.env_weights[3 * j + 2]));
+  for (std::uint32_t k = 0; s.n_sh && k < s.n_dirs; ++k) {
+    Vec3 L;
+    for (int ch = 0; ch < 3; ++ch) {
+      double l = 0;
+      for (std::uint32_t j = 0; j < s.n_sh; ++j) l += p[6 + ch * s.n_sh + j] * s.basis[k * s.n_sh + j];
+      L[ch] = 4 * kPi / s.n_dirs * std::max(0.0, l);
+    }
+    term(Vec3(s.dirs[3 * k], s.dirs[3 * k + 1], s.dirs[3 * k + 2]), L);
+  }
+  return rad;
 }
 
 // Double-precision reference of sample placement + radiance + compositing (stratum centres).
@@ -94,6 +136,12 @@ inline std::vector<double> reference_color(const RayScene& s, const std::vector<
       const double t = tn + (i + 0.5) * step;
       const double delta = step;  // midpoint intervals of stratum centres
       const Vec3 x = o + t * d, wo = -d, tl = lp - x;
+      const double alpha = 1 - std::exp(-p[0] * delta);
+      if (s.brdf) {
+        c += T * alpha * brdf_radiance(s, p, wo, tl, I);
+        T *= 1 - alpha;
+        continue;
+      }
       const double g = p[4];
       Vec3 S = hg(g, wo.dot(tl.normalized())) * p[5] / tl.squaredNorm() * I;
       if (closed_form && s.n_sh) {
@@ -116,7 +164,6 @@ inline std::vector<double> reference_color(const RayScene& s, const std::vector<
           S[ch] += 4 * kPi / s.n_dirs * hg(g, wo.dot(wk)) * std::max(0.0, L);
         }
       }
-      const double alpha = 1 - std::exp(-p[0] * delta);
       c += T * alpha * Vec3(p[1] * S[0], p[2] * S[1], p[3] * S[2]);
       T *= 1 - alpha;
     }

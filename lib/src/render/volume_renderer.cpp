@@ -14,7 +14,14 @@ const Buffer<float>& env_weights(const EnvironmentSamples* env) { return env ? e
 }  // namespace
 
 VolumeRenderer::VolumeRenderer(const Device& device, const RendererSettings& settings)
-    : m_device(device), m_settings(settings) {
+    : m_device(device), m_settings(settings), m_brdf(settings.scattering == "brdf") {
+  if (settings.scattering != "phase" && settings.scattering != "brdf")
+    throw InvalidArgument("RendererSettings::scattering must be \"phase\" (media) or \"brdf\" (solids), got \"" +
+                          settings.scattering + "\"");
+  if (m_brdf && settings.closed_form_indirect)
+    throw InvalidArgument("RendererSettings: closed_form_indirect has no closed form with scattering \"brdf\" (the "
+                          "Funk-Hecke identity it uses holds for the HG phase function only); set "
+                          "closed_form_indirect = false to use the K-direction sum");
   if (settings.n_samples == 0 || settings.n_samples % nn::kBatchTile != 0 || settings.n_samples > 4096)
     throw InvalidArgument("samples per ray must be a positive multiple of 16 up to 4096, got " +
                           std::to_string(settings.n_samples));
@@ -30,7 +37,8 @@ VolumeRenderer::VolumeRenderer(const Device& device, const RendererSettings& set
                {"N_SH", std::to_string(m_n_sh)},
                {"N_DIRS", std::to_string(settings.n_dirs)},
                {"INDIRECT_MODE", settings.closed_form_indirect ? "1" : "0"},
-               {"N_ENV", std::to_string(settings.n_env_dirs)}};
+               {"N_ENV", std::to_string(settings.n_env_dirs)},
+               {"SCATTERING_BRDF", m_brdf ? "1" : "0"}};
   if (m_n_sh) m_sh = nn::create_encoding({{"type", "SphericalHarmonics"}, {"degree", settings.sh_lmax + 1}}, 3);
 }
 
@@ -73,7 +81,8 @@ void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, c
   if (props.batch() != n || props.cols() != prop_cols())
     throw InvalidArgument(std::string("VolumeRenderer::") + what + ": properties are " + std::to_string(props.batch()) +
                           "x" + std::to_string(props.cols()) + ", expected " + std::to_string(n) + "x" +
-                          std::to_string(prop_cols()) + " (rays x samples, 6 + 3 n_sh + n_env_dirs)");
+                          std::to_string(prop_cols()) + " (rays x samples, 6 + 3 n_sh + n_env_dirs" +
+                          (m_brdf ? " + 3 normal columns for scattering \"brdf\")" : ")"));
 }
 
 void VolumeRenderer::sample(Buffer<float>& rays, std::uint32_t n_rays, bool jitter, std::uint32_t seed,
@@ -95,11 +104,18 @@ void VolumeRenderer::forward(const Buffer<float>& rays, std::uint32_t n_rays, co
   if (color.size() < 3 * std::size_t(n_rays) || transmittance.size() < n_rays || radiance.cols() != 3)
     throw InvalidArgument("VolumeRenderer::forward: output buffers too small");
   radiance.resize(props.batch());
-  const auto n_tiles = static_cast<std::uint32_t>(props.batch() / nn::kBatchTile);
-  m_device.kernel("render.cl", "render_radiance", m_defines)
-      .args(n_tiles, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env),
-            radiance.data())
-      .launch(n_tiles, 16);
+  if (m_brdf) {  // one work-item per sample
+    const std::uint32_t n = props.batch();
+    m_device.kernel("render.cl", "render_radiance_brdf", m_defines)
+        .args(n, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env), radiance.data())
+        .launch(n, 64);
+  } else {  // one work-item per tile of 16 samples
+    const auto n_tiles = static_cast<std::uint32_t>(props.batch() / nn::kBatchTile);
+    m_device.kernel("render.cl", "render_radiance", m_defines)
+        .args(n_tiles, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env),
+              radiance.data())
+        .launch(n_tiles, 16);
+  }
   m_device.kernel("render.cl", "composite", m_defines)
       .args(n_rays, rays, delta, props.data(), radiance.data(), color, transmittance)
       .launch(n_rays, 16);
@@ -115,14 +131,14 @@ void VolumeRenderer::backward(const Buffer<float>& rays, std::uint32_t n_rays, c
     throw InvalidArgument("VolumeRenderer::backward: gradient buffers have the wrong shape");
   d_props.resize(props.batch());
   d_radiance.resize(props.batch());
-  const auto n_tiles = static_cast<std::uint32_t>(props.batch() / nn::kBatchTile);
   m_device.kernel("render.cl", "composite_backward", m_defines)
       .args(n_rays, rays, delta, props.data(), radiance.data(), color, d_color, d_props.data(), d_radiance.data())
       .launch(n_rays, 16);
-  m_device.kernel("render.cl", "render_radiance_backward", m_defines)
-      .args(n_tiles, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env),
-            d_radiance.data(), d_props.data())
-      .launch(n_tiles, 16);
+  const std::uint32_t n = m_brdf ? props.batch() : static_cast<std::uint32_t>(props.batch() / nn::kBatchTile);
+  m_device.kernel("render.cl", m_brdf ? "render_radiance_brdf_backward" : "render_radiance_backward", m_defines)
+      .args(n, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env), d_radiance.data(),
+            d_props.data())
+      .launch(n, m_brdf ? 64 : 16);
 }
 
 IndirectBasis::IndirectBasis(const Device& device, std::uint32_t n_dirs, int sh_lmax)

@@ -5,10 +5,11 @@
 // them into pixel colours (and, backward, pixel-colour gradients into property gradients).
 //
 //   sample():   rays → t_near/t_far, stratified sample distances t, deltas, sample positions (BatchMatrix x 3)
-//   forward():  properties → per-sample radiance a ⊙ (S_dir + S_env + S_ind) → composited colour and
-//               transmittance
-//   backward(): dL/dcolour → dL/dproperties (sigma, albedo, g, SH coefficients; zero for every visibility
-//               column, whose network the render loss must not reach)
+//   forward():  properties → per-sample radiance a ⊙ (S_dir + S_env + S_ind) (scattering "phase"), or the
+//               BRDF-weighted light of a solid's surface (scattering "brdf", DESIGN §4.4) → composited colour
+//               and transmittance
+//   backward(): dL/dcolour → dL/dproperties (sigma, albedo, g or roughness, SH coefficients, the raw normal;
+//               zero for every visibility column, whose network the render loss must not reach)
 //
 // Ray records are kRayFloats floats: origin, t_near, direction (unit), t_far, light position, 0, light RGB
 // intensity [W/sr], 0, background radiance, 0. Sample s = ray * n_samples + i.
@@ -19,6 +20,7 @@
 #include <relit/nn/module.hpp>
 
 #include <memory>
+#include <string>
 
 #include <cstdint>
 
@@ -28,12 +30,19 @@ constexpr std::uint32_t kRayFloats = 20;
 
 class EnvironmentSamples;
 
-/// Columns of the per-sample property matrix: sigma, albedo (3), g, V toward the point light, the SH
-/// coefficients channel-major (3 n_sh), then V toward each of the N_e environment directions.
-enum PropColumn : std::uint32_t { kSigma = 0, kAlbedo = 1, kG = 4, kVisibility = 5, kSH = 6 };
+/// Columns of the per-sample property matrix: sigma, albedo (3), g (scattering "phase") or the roughness
+/// (scattering "brdf"), V toward the point light, the SH coefficients channel-major (3 n_sh), then V toward
+/// each of the N_e environment directions, and with scattering "brdf" the raw normal (3, any length).
+enum PropColumn : std::uint32_t { kSigma = 0, kAlbedo = 1, kG = 4, kRoughness = 4, kVisibility = 5, kSH = 6 };
 
 /// The first environment-visibility column, V(x, w_0): column kSH + 3 n_sh; V(x, w_j) is this + j.
 constexpr std::uint32_t env_visibility_column(std::uint32_t n_sh) { return kSH + 3 * n_sh; }
+
+/// The first of the three columns of the raw normal in scattering "brdf" (x, then y, z): after the N_e
+/// environment-visibility columns, the last three of the matrix.
+constexpr std::uint32_t normal_column(std::uint32_t n_sh, std::uint32_t n_env_dirs) {
+  return env_visibility_column(n_sh) + n_env_dirs;
+}
 
 struct RendererSettings {
   std::uint32_t n_samples = 64;  ///< samples per ray, a multiple of 16
@@ -41,12 +50,18 @@ struct RendererSettings {
   std::uint32_t n_dirs = 64;     ///< K, uniform directions of the indirect-light sum
   /// Replace the K-direction sum by its closed form sum_lm g^l c_lm Y_lm(-w_o) (exact when the max(0, .)
   /// clamp is inactive; an ablation and a fast preview). forward()/backward() then take the view basis
-  /// (view_basis()) in place of the directions' basis, and ignore `dirs`.
+  /// (view_basis()) in place of the directions' basis, and ignore `dirs`. Scattering "phase" only.
   bool closed_form_indirect = false;
   /// N_e, importance-sampled environment directions of S_env (DESIGN §4.2 uses 32); 0: no environment
   /// light. With N_e > 0 the property matrix ends in N_e visibility columns and forward()/backward() need
   /// the EnvironmentSamples of the iteration.
   std::uint32_t n_env_dirs = 0;
+  /// How a sample scatters light toward the camera: "phase" (media, DESIGN §4.2: radiance a ⊙ S with the HG
+  /// phase function of column kG) or "brdf" (solids, "Ours + BRDF", DESIGN §4.4: column kRoughness holds
+  /// the roughness r in (0, 1), three more columns at normal_column() the raw normal n_raw, which the
+  /// renderer normalises; each light term is f(w_o, w_i) max(0, n.w_i) times its incident light with f
+  /// the BRDF of kernels/brdf.clh, the path tracer's). "brdf" has no closed-form indirect light.
+  std::string scattering = "phase";
 };
 
 class VolumeRenderer {
@@ -56,10 +71,14 @@ class VolumeRenderer {
   const RendererSettings& settings() const { return m_settings; }
   /// (sh_lmax + 1)^2, or 0 without indirect light.
   std::uint32_t n_sh() const { return m_n_sh; }
-  /// Columns of the property matrix: 6 + 3 n_sh + n_env_dirs.
-  std::uint32_t prop_cols() const { return 6 + 3 * m_n_sh + m_settings.n_env_dirs; }
-  /// The column of V(x, w_0) toward the first environment direction (= prop_cols() without environment).
+  /// Whether samples scatter with the BRDF (scattering "brdf") rather than the phase function.
+  bool brdf() const { return m_brdf; }
+  /// Columns of the property matrix: 6 + 3 n_sh + n_env_dirs, plus 3 for the normal with scattering "brdf".
+  std::uint32_t prop_cols() const { return normal_col() + (m_brdf ? 3 : 0); }
+  /// The column of V(x, w_0) toward the first environment direction.
   std::uint32_t env_visibility_col() const { return env_visibility_column(m_n_sh); }
+  /// The first of the raw normal's three columns (scattering "brdf"; = prop_cols() in phase mode).
+  std::uint32_t normal_col() const { return normal_column(m_n_sh, m_settings.n_env_dirs); }
 
   /// Intersects the rays with [-1, 1]^3 (writing t_near/t_far into the records) and places the samples.
   /// `jitter` draws each sample uniformly in its stratum from (seed, ray, sample); otherwise stratum centres.
@@ -91,6 +110,7 @@ class VolumeRenderer {
   Device m_device;
   RendererSettings m_settings;
   std::uint32_t m_n_sh;
+  bool m_brdf;
   Defines m_defines;
   std::shared_ptr<nn::Encoding> m_sh;  // evaluates view_basis(); absent without indirect light
   mutable nn::BatchMatrix m_view_dirs;  // view_basis() scratch, reused while the ray count does not grow
