@@ -115,6 +115,28 @@ void check_gradients(method::Model& model, std::uint32_t which, std::size_t lo, 
   }
 }
 
+// ---- Ours + BRDF -------------------------------------------------------------------------------------------------
+
+TEST(OursBrdf, RenderGradientMatchesFiniteDifferences) {
+  // σ, diffuse albedo, roughness and the raw normal through the BRDF renderer, and the l_max = 1 SH head.
+  const Device dev = test::test_device();
+  const Json model = {{"renderer", {{"n_samples", 16}, {"n_dirs", 8}}},
+                      {"n_features", 4},
+                      {"density_grid", {{"resolution", 8}, {"march_steps", 16}}},
+                      {"property", {{"encoding", kFreq}, {"network", kMlp}}},
+                      {"indirect", {{"light_encoding", kFreq}, {"network", kMlp}}},
+                      {"visibility", {{"position_encoding", kFreq}, {"direction_encoding", kFreq}, {"network", kMlp}}}};
+  method::OursBrdf m(dev, model);
+  EXPECT_EQ(m.settings().renderer.scattering, "brdf");
+  EXPECT_EQ(m.settings().renderer.sh_lmax, 1);
+  EXPECT_EQ(m.renderer().prop_cols(), 6u + 3u * 4u + 3u);
+  m.initialize(3);
+  check_gradients(m, 0, 0, m.n_params());
+  Json bad = model;
+  bad["renderer"]["closed_form_indirect"] = true;  // no closed form of the BRDF's convolution
+  EXPECT_THROW(method::OursBrdf(dev, bad), ConfigError);
+}
+
 // ---- Bi et al. ------------------------------------------------------------------------------------------------
 
 TEST(Bi, FineSamplesFollowTheCoarseWeights) {

@@ -12,7 +12,6 @@ namespace relit::method {
 
 namespace {
 
-constexpr std::uint32_t kPropHeads = 5;  // sigma, albedo (3), g: the property net's outputs before the features
 
 Json default_property() {
   return {{"encoding", {{"type", "HashGrid"}, {"n_levels", 12}, {"n_features_per_level", 2}, {"log2_hashmap_size", 17},
@@ -127,20 +126,22 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
                                    m_variant == Variant::bi ? "stratified samples per ray of the coarse network (a multiple of 16)"
                                                             : "samples per ray (a multiple of 16)");
     if (s.renderer.n_samples % 16) rr.fail("n_samples", "must be a multiple of 16, got " + std::to_string(s.renderer.n_samples));
-    const bool has_sh = m_variant == Variant::ours;
+    const bool has_sh = m_variant == Variant::ours || m_variant == Variant::ours_brdf;
     if (!has_sh) configure_renderer_extra(rr);
-    const std::string sh = !has_sh ? std::string("none") : rr.choice("sh", "5", {"none", "0", "1", "2", "3", "4", "5", "6", "7", "8", "9"},
+    const bool brdf = m_variant == Variant::ours_brdf;
+    if (brdf) s.renderer.scattering = "brdf";
+    const std::string sh = !has_sh ? std::string("none") : rr.choice("sh", brdf ? "1" : "5", {"none", "0", "1", "2", "3", "4", "5", "6", "7", "8", "9"},
                                      "SH bands of the indirect light: l_max, or none (no indirect light)");
     s.renderer.sh_lmax = sh == "none" ? -1 : std::stoi(sh);
     if (has_sh) s.renderer.n_dirs = rr.uint("n_dirs", 64, 1, 4096, "K, uniform directions of the indirect-light sum");
-    if (has_sh) s.renderer.closed_form_indirect = rr.boolean("closed_form_indirect", false,
+    if (has_sh && !brdf) s.renderer.closed_form_indirect = rr.boolean("closed_form_indirect", false,
                                                  "closed-form indirect light sum_lm g^l c_lm Y_lm(-w_o) instead of "
                                                  "the K-direction sum (no max(0, .) clamp)");
     rr.finish();
     record(rr);
     r.set_resolved("renderer", rr.resolved());
   }
-  if (m_variant == Variant::ours) {
+  if (m_variant == Variant::ours || m_variant == Variant::ours_brdf) {
     s.n_features = r.uint("n_features", 11, 1, 256, "feature columns passed from the property net to the SH head");
     s.intensity_reference = r.number("intensity_reference", 1000.0f, 1e-6f, 1e9f,
                                      "I_ref [W/sr]: the SH head predicts indirect light per unit I / I_ref");
@@ -168,7 +169,8 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
                                     "visibility when rendering: the network (as the paper) or a density-grid march");
   Json env_network, env_resolved;
   {
-    SubConfig sub(r, "environment", m_variant == Variant::ours ? default_environment() : Json::object(),
+    const bool env_head = m_variant == Variant::ours || m_variant == Variant::ours_brdf;
+    SubConfig sub(r, "environment", env_head ? default_environment() : Json::object(),
                   "the environment light of 'env+point' data: S_env and the position-only SH head c_env", docs);
     auto& e = s.environment;
     e.enabled = sub.reader.boolean("enabled", false,
@@ -180,7 +182,7 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     e.visibility_fraction = sub.reader.number("visibility_fraction", 0.0625f, 1e-3f, 1.0f,
                                               "share of each batch's rays whose samples train the visibility net "
                                               "toward the environment directions");
-    if (m_variant == Variant::ours)
+    if (env_head)
       env_network = sub.component("network", default_environment(), "the c_env head's MLP on the features (output: none)");
     sub.finish();
     env_resolved = sub.reader.resolved();
@@ -194,11 +196,17 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     Json net = sub.component("network", default_property(), "the trunk; its output heads are set by the model");
     sub.finish();
     const std::string ptr = r.pointer("property");
-    net = with_heads(net, ptr + "/network",
-                     Json::array({{{"n_dims", 1}, {"activation", "Softplus"}}, {{"n_dims", 3}, {"activation", "Sigmoid"}},
-                                  {{"n_dims", 1}, {"activation", "Tanh"}}, {{"n_dims", s.n_features}, {"activation", "None"}}}));
+    Json heads = Json::array({{{"n_dims", 1}, {"activation", "Softplus"}}, {{"n_dims", 3}, {"activation", "Sigmoid"}}});
+    if (m_variant == Variant::ours_brdf) {  // roughness in (0, 1), the raw normal
+      heads.push_back({{"n_dims", 1}, {"activation", "Sigmoid"}});
+      heads.push_back({{"n_dims", 3}, {"activation", "None"}});
+    } else {
+      heads.push_back({{"n_dims", 1}, {"activation", "Tanh"}});
+    }
+    heads.push_back({{"n_dims", s.n_features}, {"activation", "None"}});
+    net = with_heads(net, ptr + "/network", heads);
     auto e = nn::create_encoding(enc, 3, ptr + "/encoding");
-    auto n = nn::create_network(net, e->n_output_dims(), kPropHeads + s.n_features, ptr + "/network");
+    auto n = nn::create_network(net, e->n_output_dims(), prop_heads() + s.n_features, ptr + "/network");
     m_property = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
     Json res = m_property->hyperparams();
     res["network"] = strip_heads(res["network"]);
@@ -322,7 +330,7 @@ void Ours::initialize(std::uint64_t seed) {
 void Ours::prepare_branch(OursPass& pass, const Branch& branch, std::uint32_t n_rays, std::uint32_t n_env) const {
   const std::uint32_t n = n_rays * branch.n_samples;
   const std::uint32_t n_sh = m_renderer->n_sh();
-  const std::uint32_t prop_out = kPropHeads + m_settings.n_features;
+  const std::uint32_t prop_out = prop_heads() + m_settings.n_features;
   const std::uint32_t light_cols = m_settings.n_features + (m_settings.light_conditioned ? 3 : 0);
   auto ensure = [&](Buffer<float>& b, std::size_t count) {
     if (b.size() < count) b = Buffer<float>(m_device, count);
@@ -406,6 +414,7 @@ void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& r
   else branch.property->inference(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
   nn::copy_columns(m_device, pass.props_raw, 0, pass.props, render::kSigma, 4);  // sigma, albedo
   nn::copy_columns(m_device, pass.props_raw, 4, pass.props, render::kG, 1, g_scale());  // Bi et al.: g = 0
+  if (renderer.brdf()) nn::copy_columns(m_device, pass.props_raw, 5, pass.props, renderer.normal_col(), 3);
   mark(timer, "property net forward");
   if (march) {
     render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps, pass.vis);
@@ -434,7 +443,7 @@ void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& r
   }
   mark(timer, "visibility net forward");
   if (n_sh > 0) {
-    nn::copy_columns(m_device, pass.props_raw, kPropHeads, pass.light_in, 0, m_settings.n_features);
+    nn::copy_columns(m_device, pass.props_raw, prop_heads(), pass.light_in, 0, m_settings.n_features);
     if (training) m_indirect->forward(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
     else m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,
@@ -479,20 +488,22 @@ void Ours::backward_branch(OursPass& pass, const Branch& branch, const Buffer<fl
   // d props_raw: sigma and albedo as they are, g through the 0.95 scale, features from the SH head.
   nn::copy_columns(m_device, pass.d_props, render::kSigma, pass.d_props_raw, 0, 4);
   nn::copy_columns(m_device, pass.d_props, render::kG, pass.d_props_raw, 4, 1, g_scale());
+  if (m_settings.renderer.scattering == "brdf")
+    nn::copy_columns(m_device, pass.d_props, renderer_for(spr, n_env).normal_col(), pass.d_props_raw, 5, 3);
   if (n_sh > 0) {
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.d_props, render::kSH, pass.d_indirect_raw, 0, n_sh,
                                    1.0f / m_settings.intensity_reference);
     m_indirect->backward(m_device, {&m_params, m_property->n_params()}, pass.light_in, pass.indirect_raw,
                          pass.d_indirect_raw, {&m_grads, m_property->n_params()}, false, &pass.d_light_in,
                          *pass.ws_indirect);
-    nn::copy_columns(m_device, pass.d_light_in, 0, pass.d_props_raw, kPropHeads, m_settings.n_features);
+    nn::copy_columns(m_device, pass.d_light_in, 0, pass.d_props_raw, prop_heads(), m_settings.n_features);
     if (m_environment) {
       const std::uint32_t offset = m_property->n_params() + m_indirect->n_params();
       if (n_env > 0) {
         nn::copy_columns(m_device, pass.d_props, render::kSH, pass.d_env_raw, 0, 3 * n_sh);
         m_environment->backward(m_device, {&m_params, offset}, pass.light_in, pass.env_raw, pass.d_env_raw,
                                 {&m_grads, offset}, false, &pass.d_env_in, *pass.ws_environment);
-        nn::copy_columns(m_device, pass.d_env_in, 0, pass.d_props_raw, kPropHeads, m_settings.n_features, 1.0f, true);
+        nn::copy_columns(m_device, pass.d_env_in, 0, pass.d_props_raw, prop_heads(), m_settings.n_features, 1.0f, true);
       } else {
         m_grads.fill(0.0f, offset, m_environment->n_params());  // c_env took no part in this pass
       }
@@ -570,7 +581,7 @@ void Ours::refresh_density_grid() {
   const std::uint32_t chunk = std::min<std::uint32_t>(total, 1u << 17);
   if (m_grid_positions.cols() != 3) {
     m_grid_positions = nn::BatchMatrix(m_device, chunk, 3);
-    m_grid_props = nn::BatchMatrix(m_device, chunk, kPropHeads + m_settings.n_features);
+    m_grid_props = nn::BatchMatrix(m_device, chunk, prop_heads() + m_settings.n_features);
     m_grid_ws = m_property->make_workspace(m_device);
   }
   for (std::uint32_t first = 0; first < total; first += chunk) {
@@ -583,6 +594,17 @@ void Ours::refresh_density_grid() {
         .args(n, m_grid_props.cols(), 0u, m_grid_props.data(), m_grid.sigma, first)
         .launch(n, 64);
   }
+}
+
+OursBrdf::OursBrdf(const Device& device, const Json& config, const std::string& pointer)
+    : Ours(device, Variant::ours_brdf) {
+  configure(config, pointer, nullptr);
+  allocate();
+}
+
+void OursBrdf::describe(config::Docs& docs) {
+  OursBrdf m(Variant::ours_brdf);
+  m.configure(Json::object(), "/model", &docs);
 }
 
 // ---- the Model interface ---------------------------------------------------------------------------------

@@ -182,7 +182,8 @@ void tiled_to_rows(const Device& device, const nn::BatchMatrix& m, Buffer<float>
 // The top-level keys of a run config (also read by the Trainer's constructor).
 Json read_run_keys(config::Reader& r) {
   r.choice("method", "ours", method_names(),
-           "the method: ours (DESIGN §4.3), bi (Bi et al.'s Neural Reflectance Field) or nerv (NeRV), DESIGN §4.5");
+           "the method: ours (DESIGN §4.3), ours_brdf (Ours + BRDF for solids, §4.4), bi (Bi et al.'s Neural "
+           "Reflectance Field) or nerv (NeRV), §4.5");
   return r.sub("model", Json::object(), "object", "the model (the /model objects below)");
 }
 

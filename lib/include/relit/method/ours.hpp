@@ -151,7 +151,7 @@ class Ours : public Model {
 
  protected:
   /// What the model varies for the methods built on it (NeuralReflectanceField, NeRV).
-  enum class Variant { ours, bi, nerv };
+  enum class Variant { ours, ours_brdf, bi, nerv };
   /// A derived method's constructor calls configure() and allocate() itself (so that its hooks dispatch).
   Ours(const Device& device, Variant variant) : Model(device), m_variant(variant) {}
   explicit Ours(Variant variant) : m_variant(variant) {}  // describe() only
@@ -159,8 +159,11 @@ class Ours : public Model {
   virtual void configure_extra(config::Reader& r, config::Docs* docs) { (void)r, (void)docs; }
   /// Reads the derived method's own keys of the "renderer" object.
   virtual void configure_renderer_extra(config::Reader& r) { (void)r; }
-  /// HG g = g_scale() tanh(raw): 0.95, or 0 for Bi et al.'s isotropic phase.
-  float g_scale() const { return m_variant == Variant::bi ? 0.0f : 0.95f; }
+  /// HG g = g_scale() tanh(raw): 0.95, or 0 for Bi et al.'s isotropic phase (Ours + BRDF: the roughness, 1).
+  float g_scale() const { return m_variant == Variant::bi ? 0.0f : m_variant == Variant::ours_brdf ? 1.0f : 0.95f; }
+  /// The property net's outputs before the features: sigma, albedo (3), g or roughness, and for Ours + BRDF
+  /// the raw normal (3).
+  std::uint32_t prop_heads() const { return m_variant == Variant::ours_brdf ? 8u : 5u; }
   /// A property network with its θ offset and samples per ray (Bi et al. has a coarse and a fine one).
   struct Branch {
     const nn::NetworkWithInputEncoding* property = nullptr;
@@ -197,6 +200,19 @@ class Ours : public Model {
   std::unique_ptr<nn::NetworkWithInputEncoding> m_property, m_indirect, m_visibility, m_environment;
   nn::BatchMatrix m_grid_positions, m_grid_props;
   std::unique_ptr<nn::Workspace> m_grid_ws;
+};
+
+/// "Ours + BRDF" for solid objects (DESIGN §4.4), the "ours_brdf" method: Ours with the UE4/Karis BRDF
+/// (kernels/brdf.clh) in place of the phase function; the property net predicts σ, the diffuse albedo, the
+/// roughness and a normal (normalised by the renderer). SH l_max defaults to 1.
+class OursBrdf : public Ours {
+ public:
+  OursBrdf(const Device& device, const Json& config, const std::string& pointer = "/model");
+  static void describe(config::Docs& docs);
+  std::string method() const override { return "ours_brdf"; }
+
+ private:
+  explicit OursBrdf(Variant v) : Ours(v) {}
 };
 
 }  // namespace relit::method
