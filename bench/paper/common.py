@@ -41,6 +41,25 @@ _CI_MODEL = {
     },
 }
 
+# The `ci` scale's tiny model per method: each method's structure, at the size of _CI_MODEL.
+_CI_MLP = {"type": "FullyFusedMLP", "n_neurons": 16, "n_hidden_layers": 1}
+CI_MODELS = {
+    "ours": _CI_MODEL,
+    "ours_brdf": _CI_MODEL,
+    "bi": {"renderer": {"n_samples": 16, "n_fine_samples": 16},
+           "density_grid": _CI_MODEL["density_grid"],
+           "property": _CI_MODEL["property"],
+           "coarse": _CI_MODEL["property"],
+           "visibility": _CI_MODEL["visibility"]},
+    "nerv": {"renderer": {"n_samples": 16},
+             "bounce": {"n_dirs": 4, "n_dirs_env": 2},
+             "density_grid": _CI_MODEL["density_grid"],
+             "property": _CI_MODEL["property"],
+             "visibility": {"position_encoding": _CI_MODEL["visibility"]["position_encoding"],
+                            "direction_encoding": _CI_MODEL["visibility"]["direction_encoding"],
+                            "trunk": _CI_MLP, "network": _CI_MLP}},
+}
+
 SCALES = {
     # End-to-end check of the scripts (CI): tiny images, views, networks and step counts. Numbers mean nothing.
     "ci": {"resolution": 16, "scene_resolution": 16, "train": 8, "val": 1, "test": 2, "spp": 4, "test_spp": 8,
@@ -124,11 +143,12 @@ class Relit:
         s = self.scale
         if s["preset"]:
             import relit
-            cfg = relit.preset(s["preset"])
+            cfg = relit.preset(s["preset"] if method == "ours" else "%s-%s" % (method, s["preset"]))
         else:
             cfg = {"model": {}, "training": {}}
         cfg["method"] = method
-        cfg["model"] = merge(merge(cfg.get("model", {}), s["model"]), model or {})
+        scale_model = CI_MODELS[method] if self.scale_name == "ci" else s["model"]
+        cfg["model"] = merge(merge(cfg.get("model", {}), scale_model), model or {})
         t = {"batch_rays": s["batch_rays"], "steps": self.steps, "seed": self.seed,
              "validate_every": 0 if self.scale_name == "ci" else 500, "checkpoint_every": 500,
              "log_every": 10 if self.scale_name == "ci" else 50}
@@ -206,6 +226,24 @@ def last_logged_step(run):
             if line:
                 step = json.loads(line)["step"]
     return step
+
+
+def training_seconds(run):
+    """Training time of RUN summed over its relit train calls (each call's log restarts its clock)."""
+    log = os.path.join(run, "log.jsonl")
+    if not os.path.exists(log):
+        return None
+    total, last = 0.0, 0.0
+    with open(log) as f:
+        for line in f:
+            line = line.strip()
+            if not line:
+                continue
+            e = json.loads(line).get("elapsed", 0.0)
+            if e < last:  # a new call
+                total += last
+            last = e
+    return total + last
 
 
 def read_json(path):

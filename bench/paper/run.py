@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-EXPERIMENTS = ["sh_ablation", "generalization"]
+EXPERIMENTS = ["sh_ablation", "generalization", "comparison"]
 
 
 def main():

@@ -22,10 +22,21 @@ namespace relit::python {
 namespace {
 
 
-Json config_from(const py::object& config) {
-  if (py::isinstance<py::str>(config)) return method::load_run_config(config.cast<std::string>());
-  if (py::isinstance<py::dict>(config)) return json_from_python(config);
-  throw InvalidArgument("config must be a preset name, a .json path or a dict");
+// A run config from a preset name, a .json path or a dict; `method` (when not None) picks that method's preset
+// for "fast"/"paper" and must agree with the config's "method".
+Json config_from(const py::object& config, const py::object& method_arg) {
+  const std::string m = method_arg.is_none() ? std::string() : method_arg.cast<std::string>();
+  Json c;
+  if (py::isinstance<py::str>(config)) c = method::load_run_config(method::config_for_method(config.cast<std::string>(), m));
+  else if (py::isinstance<py::dict>(config)) c = json_from_python(config);
+  else throw InvalidArgument("config must be a preset name, a .json path or a dict");
+  if (!m.empty()) {
+    method::config_for_method("fast", m);  // an unknown method is an error naming the valid ones
+    if (c.contains("method") && c["method"] != m)
+      throw ConfigError("/method", "is \"" + c["method"].get<std::string>() + "\" but method=\"" + m + "\" was given");
+    c["method"] = m;
+  }
+  return c;
 }
 
 // `for stats in trainer.run(n)`: trains in chunks of training.log_every steps, yielding after each.
@@ -95,7 +106,9 @@ void bind_method(py::module_& m) {
                ", visible=" + (e.visible() ? "True" : "False") + ")";
       });
 
-  m.def("presets", &method::preset_names, "Names of the built-in run configs (\"fast\", \"paper\").");
+  m.def("presets", &method::preset_names,
+        "Names of the built-in run configs (\"fast\", \"paper\", and per method \"bi-fast\", \"nerv-paper\", ...).");
+  m.def("methods", &method::method_names, "Names of the methods a run config may choose (\"ours\", \"bi\", ...).");
   m.def(
       "preset", [](const std::string& name) { return json_to_python(method::preset(name)); }, py::arg("name"),
       "A built-in run config as a dict (edit it and pass it to relit.Trainer).");
@@ -141,14 +154,16 @@ void bind_method(py::module_& m) {
 
   py::class_<method::Trainer>(m, "Trainer", "Trains the model on a dataset folder (relit train in Python).")
       .def(py::init([](const std::string& dataset, const py::object& config, const py::object& out,
-                       const py::object& device) {
-             auto t = std::make_unique<method::Trainer>(device_arg(device), dataset, config_from(config));
+                       const py::object& device, const py::object& method) {
+             auto t = std::make_unique<method::Trainer>(device_arg(device), dataset, config_from(config, method));
              if (!out.is_none()) t->set_output(out.cast<std::string>());
              return t;
            }),
            py::arg("dataset"), py::arg("config") = "fast", py::arg("out") = py::none(), py::arg("device") = py::none(),
-           "config: a preset name, a .json path or a dict. out: a run folder for config.json, log.jsonl and\n"
-           "checkpoints (optional).")
+           py::arg("method") = py::none(),
+           "config: a preset name, a .json path or a dict. method: \"ours\" (default), \"ours_brdf\", \"bi\" or\n"
+           "\"nerv\" (with a preset name, that method's preset: bi-fast, ...). out: a run folder for config.json,\n"
+           "log.jsonl and checkpoints (optional).")
       .def(
           "run",
           [](method::Trainer& t, std::uint64_t n, std::uint64_t every) {

@@ -135,3 +135,45 @@ def _write(tmp_path, config):
     path = tmp_path / "config.json"
     path.write_text(json.dumps(config))
     return path
+
+
+NERV_MODEL = {
+    "renderer": {"n_samples": 16},
+    "bounce": {"n_dirs": 4},
+    "density_grid": {"resolution": 8, "march_steps": 16},
+    "property": {"encoding": FREQ, "network": MLP},
+    "visibility": {"position_encoding": FREQ, "direction_encoding": FREQ, "trunk": MLP, "network": MLP},
+}
+
+
+def test_baselines_train_from_python_and_the_cli(dataset, device, tmp_path):
+    # A baseline is chosen by the config's "method" (or method=...), trains, checkpoints and renders like Ours.
+    assert set(relit.methods()) == {"ours", "ours_brdf", "bi", "nerv"}
+    assert {"bi-fast", "bi-paper", "nerv-fast", "nerv-paper", "ours_brdf-fast"} <= set(relit.presets())
+    config = {"model": NERV_MODEL, "training": dict(CONFIG["training"], validate_every=0)}
+    run = str(tmp_path / "nerv")
+    trainer = relit.Trainer(dataset, config=config, out=run, device=device, method="nerv")
+    stats = list(trainer.run(4))
+    assert stats[-1].step == 4 and math.isfinite(stats[-1].loss)
+    assert trainer.model.method == "nerv" and trainer.config["method"] == "nerv"
+    model = relit.Model.load(os.path.join(run, "checkpoint.relit"), device=device)
+    assert model.method == "nerv"
+    cam = relit.Camera.look_at([0, -3.5, 1], [0, 0, 0], [0, 0, 1], 0.7, 8, 8)
+    img = model.render(cam, relit.PointLight([2, -2, 3], [500, 400, 300]))
+    assert img.shape == (8, 8, 3) and np.isfinite(img).all()
+    with pytest.raises(relit.ConfigError, match="method"):
+        relit.Trainer(dataset, config=dict(config, method="bi"), device=device, method="nerv")
+    with pytest.raises(relit.InvalidArgument, match="nerv"):
+        relit.Trainer(dataset, config="fast", device=device, method="nerf")
+    # The CLI: --method with a config file that leaves "method" out.
+    path = str(tmp_path / "nerv.json")
+    with open(path, "w") as f:
+        json.dump(config, f)
+    out = str(tmp_path / "nerv-cli")
+    r = run_python(["-m", "relit", "train", dataset, "--config", path, "--method", "nerv", "--out", out, "--steps", "2"])
+    assert r.returncode == 0, r.stderr
+    with open(os.path.join(out, "config.json")) as f:
+        assert json.load(f)["method"] == "nerv"
+    r = run_python(["-m", "relit", "train", dataset, "--config", path, "--method", "bi", "--out", str(tmp_path / "x"),
+                    "--steps", "2"])
+    assert r.returncode != 0

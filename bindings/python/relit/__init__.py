@@ -33,9 +33,9 @@ from ._core import Camera, PointLight, Progress, Scene, generate_dataset, render
 __all__ += ["Camera", "PointLight", "Progress", "Scene", "generate_dataset", "render_reference"]
 
 # The method: training and relighting.
-from ._core import EnvironmentLight, Model, Trainer, TrainStats, preset, presets  # noqa: F401,E402
+from ._core import EnvironmentLight, Model, Trainer, TrainStats, methods, preset, presets  # noqa: F401,E402
 
-__all__ += ["EnvironmentLight", "Model", "Trainer", "TrainStats", "preset", "presets"]
+__all__ += ["EnvironmentLight", "Model", "Trainer", "TrainStats", "methods", "preset", "presets"]
 
 # Evaluation reports: metrics.json / metrics.md / contact sheets from predictions and references.
 from ._core import contact_sheet, write_report  # noqa: F401,E402
