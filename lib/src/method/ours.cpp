@@ -171,7 +171,9 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   {
     const bool env_head = m_variant == Variant::ours || m_variant == Variant::ours_brdf;
     SubConfig sub(r, "environment", env_head ? default_environment() : Json::object(),
-                  "the environment light of 'env+point' data: S_env and the position-only SH head c_env", docs);
+                  env_head ? "the environment light of 'env+point' data: S_env and the position-only SH head c_env"
+                           : "the environment light of 'env+point' data: its direct light S_env",
+                  docs);
     auto& e = s.environment;
     e.enabled = sub.reader.boolean("enabled", false,
                                    "the model has an environment light (relit train sets it from the dataset)");
@@ -191,7 +193,10 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   const std::uint32_t n_sh = s.renderer.sh_lmax < 0 ? 0 : std::uint32_t((s.renderer.sh_lmax + 1) * (s.renderer.sh_lmax + 1));
   // Property network: [0,1]^3 position → sigma, albedo, g, features.
   {
-    SubConfig sub(r, "property", default_property(), "property network F_θ: {encoding, network}", docs);
+    SubConfig sub(r, "property", default_property(),
+                  m_variant == Variant::bi ? "the fine network F_θ: {encoding, network}"
+                                           : "property network F_θ: {encoding, network}",
+                  docs);
     const Json enc = sub.component("encoding", default_property(), "position encoding (3 dims)");
     Json net = sub.component("network", default_property(), "the trunk; its output heads are set by the model");
     sub.finish();
