@@ -25,8 +25,16 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
     gen = json.load(open(tmp_path / "generalization" / "results.json"))
     assert list(gen["distance"]["psnr"]) == ["3", "5", "7", "10"]
     assert list(gen["intensity"]["psnr"]) == ["400", "800", "1200", "1600"]
+    cmp = json.load(open(tmp_path / "comparison" / "results.json"))
+    assert set(cmp["media"]) == {"cloud-point", "cloud-envpoint"} and set(cmp["solids"]) == {"spheres-point"}
+    assert all(set(runs) == {"bi", "nerv", "ours"} for runs in cmp["media"].values())
+    assert set(cmp["solids"]["spheres-point"]) == {"bi", "nerv", "ours_brdf", "ours"}
+    assert all(0 < v["psnr"] < 100 and v["minutes"] >= 0 for part in ("media", "solids")
+               for runs in cmp[part].values() for v in runs.values())
+    assert "cloud-point: ours > nerv > bi" in cmp["checks"]
+    assert "| Ours + BRDF |" in (tmp_path / "comparison" / "results.md").read_text()
     for f in ["sh_ablation/results.md", "sh_ablation/sh_ablation.png", "generalization/results.md",
-              "generalization/distance.png", "generalization/intensity.png"]:
+              "generalization/distance.png", "generalization/intensity.png", "comparison/comparison.png"]:
         assert os.path.getsize(tmp_path / f) > 0, f
     assert "| SH-5 |" in (tmp_path / "sh_ablation" / "results.md").read_text()
     # A rerun trains nothing and evaluates nothing; an evaluation that went missing is redone alone.
