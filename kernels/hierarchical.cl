@@ -11,6 +11,15 @@
 // Layouts as render.cl: t, delta per sample (ray-major), positions and props tiled (16-sample tiles).
 #include "common.clh"
 
+#ifndef N_COARSE  // set by sample_fine() (relit/method/bi.hpp)
+#define N_COARSE 64
+#endif
+#ifndef N_FINE
+#define N_FINE 128
+#endif
+#ifndef N_ALL
+#define N_ALL (N_COARSE + N_FINE)
+#endif
 #define RAY_FLOATS 20
 #define TILED_AT(cols, s, f) ((((size_t)(s) / 16) * (cols) + (f)) * 16 + (s) % 16)
 

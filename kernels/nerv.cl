@@ -25,6 +25,12 @@ inline float3 tiled3(__global const float* m, uint cols, uint s, uint f) {
   return (float3)(m[TILED_AT(cols, s, f)], m[TILED_AT(cols, s, f + 1)], m[TILED_AT(cols, s, f + 2)]);
 }
 
+inline void store_tiled3(__global float* m, uint cols, uint s, uint f, float3 v) {
+  m[TILED_AT(cols, s, f)] = v.x;
+  m[TILED_AT(cols, s, f + 1)] = v.y;
+  m[TILED_AT(cols, s, f + 2)] = v.z;
+}
+
 // d p(mu; g) / dg for p = (1/4pi) (1 - g^2) / (1 + g^2 + 2 g mu)^(3/2).
 inline float hg_dphase_dg(float cos_owi, float g) {
   const float d = fmax(1.0f + g * g + 2.0f * g * cos_owi, 1e-12f);
@@ -65,14 +71,8 @@ __kernel void nerv_bounce_queries(const uint n_rays, const uint K, __global cons
                                   __global const float* restrict dirs, __global float* restrict vis_in) {
   const uint q = get_global_id(0);
   if (q >= n_rays * K) return;
-  const float3 u = fma(x_t[q / K].xyz, 0.5f, 0.5f);
-  const float3 w = tiled3(dirs, 3, q % K, 0);
-  vis_in[TILED_AT(6, q, 0)] = u.x;
-  vis_in[TILED_AT(6, q, 1)] = u.y;
-  vis_in[TILED_AT(6, q, 2)] = u.z;
-  vis_in[TILED_AT(6, q, 3)] = w.x;
-  vis_in[TILED_AT(6, q, 4)] = w.y;
-  vis_in[TILED_AT(6, q, 5)] = w.z;
+  store_tiled3(vis_in, 6, q, 0, fma(x_t[q / K].xyz, 0.5f, 0.5f));
+  store_tiled3(vis_in, 6, q, 3, tiled3(dirs, 3, q % K, 0));
 }
 
 // The bounce points x'_q = clamp(x_t + D_q w_k) (xyz; w: 1 - V_q), the property MLP's inputs (rows q < n_rays K:
@@ -86,10 +86,7 @@ __kernel void nerv_bounce_points(const uint n_rays, const uint K, __global const
   const uint nq = n_rays * K;
   if (q >= nq + n_rays) return;
   if (q >= nq) {  // x_t of ray q - nq
-    const float3 u = fma(x_t[q - nq].xyz, 0.5f, 0.5f);
-    net_pos[TILED_AT(3, q, 0)] = u.x;
-    net_pos[TILED_AT(3, q, 1)] = u.y;
-    net_pos[TILED_AT(3, q, 2)] = u.z;
+    store_tiled3(net_pos, 3, q, 0, fma(x_t[q - nq].xyz, 0.5f, 0.5f));
     return;
   }
   __global const float* ray = rays + (size_t)(q / K) * RAY_FLOATS;
@@ -98,16 +95,9 @@ __kernel void nerv_bounce_points(const uint n_rays, const uint K, __global const
   const float3 x = clamp(fma(D, w, x_t[q / K].xyz), -1.0f, 1.0f);
   x_b[q] = (float4)(x, 1.0f - V);
   const float3 u = fma(x, 0.5f, 0.5f);
-  const float3 wl = normalize((float3)(ray[8], ray[9], ray[10]) - x);
-  net_pos[TILED_AT(3, q, 0)] = u.x;
-  net_pos[TILED_AT(3, q, 1)] = u.y;
-  net_pos[TILED_AT(3, q, 2)] = u.z;
-  light_in[TILED_AT(6, q, 0)] = u.x;
-  light_in[TILED_AT(6, q, 1)] = u.y;
-  light_in[TILED_AT(6, q, 2)] = u.z;
-  light_in[TILED_AT(6, q, 3)] = wl.x;
-  light_in[TILED_AT(6, q, 4)] = wl.y;
-  light_in[TILED_AT(6, q, 5)] = wl.z;
+  store_tiled3(net_pos, 3, q, 0, u);
+  store_tiled3(light_in, 6, q, 0, u);
+  store_tiled3(light_in, 6, q, 3, normalize((float3)(ray[8], ray[9], ray[10]) - x));
 }
 
 // The light of bounce q toward x_t per unit albedo a'_q and its g-derivative factor: returns

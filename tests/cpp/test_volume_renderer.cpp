@@ -286,6 +286,23 @@ void attach(RayScene& s, const render::EnvironmentSamples& env) {
   s.env_weights = env.weights().download_row_major();
 }
 
+// The colour under an environment against the double reference; the environment must contribute visibly (the
+// same scene with every environment direction occluded is darker), or the comparison would mean little.
+void expect_environment_forward(const Device& dev, const RayScene& s, int lmax, const render::EnvironmentSamples& env) {
+  const auto got = run_device(dev, s, lmax, std::vector<float>(3 * s.n_rays, 1.f), false, &env);
+  const auto ref = reference_color(s, s.props);
+  RayScene dark = s;
+  for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i)
+    for (std::uint32_t j = 0; j < s.n_env; ++j) dark.props[i * s.cols() + s.env_col() + j] = 0;
+  const auto ref_dark = reference_color(dark, dark.props);
+  double env_part = 0;
+  for (std::size_t i = 0; i < ref.size(); ++i) {
+    EXPECT_NEAR(got.color[i], ref[i], 2e-5 * std::abs(ref[i]) + 1e-6) << "lmax " << lmax << " value " << i;
+    env_part += (ref[i] - ref_dark[i]) / ref.size();
+  }
+  EXPECT_GT(env_part, 0.05) << "the environment must contribute visibly for the comparison to mean something";
+}
+
 }  // namespace
 
 TEST(VolumeRendererEnvironment, ForwardMatchesDoubleReference) {
@@ -298,37 +315,36 @@ TEST(VolumeRendererEnvironment, ForwardMatchesDoubleReference) {
     attach(s, env);
     if (lmax < 0)  // the environment alone: no point light
       for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i) s.props[i * s.cols() + render::kVisibility] = 0;
-    const auto got = run_device(dev, s, lmax, std::vector<float>(3 * s.n_rays, 1.f), false, &env);
-    const auto ref = reference_color(s, s.props);
-    RayScene dark = s;  // the same scene with every environment direction occluded
-    for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i)
-      for (std::uint32_t j = 0; j < s.n_env; ++j) dark.props[i * s.cols() + s.env_col() + j] = 0;
-    const auto ref_dark = reference_color(dark, dark.props);
-    double env_part = 0;
-    for (std::size_t i = 0; i < ref.size(); ++i) {
-      EXPECT_NEAR(got.color[i], ref[i], 2e-5 * std::abs(ref[i]) + 1e-6) << "lmax " << lmax << " value " << i;
-      env_part += (ref[i] - ref_dark[i]) / ref.size();
-    }
-    EXPECT_GT(env_part, 0.05) << "the environment must contribute visibly for the comparison to mean something";
+    expect_environment_forward(dev, s, lmax, env);
   }
 }
 
-TEST(VolumeRendererEnvironment, BackwardMatchesFiniteDifferencesAndIsolatesVisibility) {
+namespace {
+
+// The backward pass under an environment against finite differences (scene, environment and weights drawn
+// from the seeds), and gradient isolation on every sample, not only the checked ones: all visibility columns
+// are exactly zero, although the colour depends on them.
+void expect_environment_backward(bool brdf, std::uint32_t scene_seed, std::uint32_t env_seed,
+                                 std::uint32_t draw_seed, std::uint32_t draw_iteration, std::uint32_t weight_seed) {
   const Device dev = test::test_device();
   const int lmax = 1;
-  RayScene s = random_scene(3, 16, lmax, 8, 6, 8);
-  render::EnvironmentSamples env(dev, random_environment(8, 4, 5), 8);
-  env.draw(1, 9);
+  RayScene s = random_scene(3, 16, lmax, 8, scene_seed, 8, brdf);
+  render::EnvironmentSamples env(dev, random_environment(8, 4, env_seed), 8);
+  env.draw(draw_seed, draw_iteration);
   attach(s, env);
-  const auto w = random_weights(3 * s.n_rays, 4);
+  const auto w = random_weights(3 * s.n_rays, weight_seed);
   const auto got = run_device(dev, s, lmax, w, false, &env);
   EXPECT_GT(expect_gradients_match_finite_differences(s, w, got.d_props, false, 5), 200);
-  // Gradient isolation on every sample, not only the checked ones: all visibility columns are exactly zero,
-  // although the colour depends on them.
   for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i) {
     ASSERT_EQ(got.d_props[i * s.cols() + render::kVisibility], 0.0f) << i;
     for (std::uint32_t j = 0; j < s.n_env; ++j) ASSERT_EQ(got.d_props[i * s.cols() + s.env_col() + j], 0.0f) << i;
   }
+}
+
+}  // namespace
+
+TEST(VolumeRendererEnvironment, BackwardMatchesFiniteDifferencesAndIsolatesVisibility) {
+  expect_environment_backward(false, 6, 5, 1, 9, 4);
 }
 
 // Known answer: a uniform environment of radiance E, visibility 1 and no other light: S_env estimates
@@ -475,18 +491,7 @@ TEST(VolumeRendererBrdf, ForwardWithEnvironmentMatchesDoubleReference) {
     render::EnvironmentSamples env(dev, light, 32);
     env.draw(8, 2);
     attach(s, env);
-    const auto got = run_device(dev, s, lmax, std::vector<float>(3 * s.n_rays, 1.f), false, &env);
-    const auto ref = reference_color(s, s.props);
-    RayScene dark = s;  // every environment direction occluded
-    for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i)
-      for (std::uint32_t j = 0; j < s.n_env; ++j) dark.props[i * s.cols() + s.env_col() + j] = 0;
-    const auto ref_dark = reference_color(dark, dark.props);
-    double env_part = 0;
-    for (std::size_t i = 0; i < ref.size(); ++i) {
-      EXPECT_NEAR(got.color[i], ref[i], 2e-5 * std::abs(ref[i]) + 1e-6) << "lmax " << lmax << " value " << i;
-      env_part += (ref[i] - ref_dark[i]) / ref.size();
-    }
-    EXPECT_GT(env_part, 0.05) << "the environment must contribute visibly for the comparison to mean something";
+    expect_environment_forward(dev, s, lmax, env);
   }
 }
 
@@ -507,19 +512,7 @@ TEST(VolumeRendererBrdf, BackwardMatchesFiniteDifferencesOfTheReference) {
 }
 
 TEST(VolumeRendererBrdf, BackwardWithEnvironmentMatchesFiniteDifferencesAndIsolatesVisibility) {
-  const Device dev = test::test_device();
-  const int lmax = 1;
-  RayScene s = random_scene(3, 16, lmax, 8, 16, 8, true);
-  render::EnvironmentSamples env(dev, random_environment(8, 4, 6), 8);
-  env.draw(2, 5);
-  attach(s, env);
-  const auto w = random_weights(3 * s.n_rays, 14);
-  const auto got = run_device(dev, s, lmax, w, false, &env);
-  EXPECT_GT(expect_gradients_match_finite_differences(s, w, got.d_props, false, 5), 200);
-  for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i) {
-    ASSERT_EQ(got.d_props[i * s.cols() + render::kVisibility], 0.0f) << i;
-    for (std::uint32_t j = 0; j < s.n_env; ++j) ASSERT_EQ(got.d_props[i * s.cols() + s.env_col() + j], 0.0f) << i;
-  }
+  expect_environment_backward(true, 16, 6, 2, 5, 14);
 }
 
 // The renderer's "brdf" mode and the path tracer shade with the same BRDF: each sample's radiance under a
