@@ -5,9 +5,10 @@
 //   x_t   = o + t_bar d,  t_bar = sum_i w_i t_i / sum_i w_i     the expected termination point
 // For the K directions w_k shared by the batch, the visibility MLP gives V_k = V(x_t, w_k) and the expected
 // termination depth D_k = D(x_t, w_k); the bounce lands at x'_k = x_t + D_k w_k, where the property MLP gives
-// a'_k, g'_k and the visibility MLP V'_k toward the point light. The light single-scattered at x'_k back
-// toward x_t, times the share 1 - V_k of the bounce ray that terminates, is
-//   L_k   = (1 - V_k) a'_k p(-w_k, w_l'; g'_k) V'_k I / |p_l - x'_k|^2
+// a'_k, g'_k and the visibility MLP V'_k toward the point light (and V'_kj toward the N_e environment
+// directions w_j, with weights E(w_j) / (pdf N_e), on 'env+point' data). The light single-scattered at x'_k
+// back toward x_t, times the share 1 - V_k of the bounce ray that terminates, is
+//   L_k   = (1 - V_k) a'_k ⊙ [p(-w_k, w_l'; g'_k) V'_k I / |p_l - x'_k|^2 + sum_j p(-w_k, w_j; g'_k) V'_kj weight_j]
 // and comes back to the camera through the phase at x_t (g_t from the property MLP at x_t):
 //   E_r   = (4 pi / K) sum_k p(-d, w_k; g_t) L_k,          colour_r += W_r ⊙ E_r.
 // Directions point away from the scattering point, as in render.cl (HG with +2g). Gradients reach the
@@ -66,6 +67,15 @@ __kernel void nerv_termination(const uint n_rays, const uint spr, __global const
   x_t[r] = (float4)(fma(tb, d, o), wsum > 1e-6f ? 1.0f : 0.0f);
 }
 
+// Rows q N_e + j of the visibility MLP's input from the bounce points toward the environment directions.
+__kernel void nerv_bounce_env_queries(const uint nq, const uint n_env, __global const float4* restrict x_b,
+                                      __global const float* restrict env_dirs, __global float* restrict vis_in) {
+  const uint i = get_global_id(0);
+  if (i >= nq * n_env) return;
+  store_tiled3(vis_in, 6, i, 0, fma(x_b[i / n_env].xyz, 0.5f, 0.5f));
+  store_tiled3(vis_in, 6, i, 3, tiled3(env_dirs, 3, i % n_env, 0));
+}
+
 // Rows q = r K + k of the visibility MLP's input toward the bounce directions: [(x_t + 1) / 2, w_k].
 __kernel void nerv_bounce_queries(const uint n_rays, const uint K, __global const float4* restrict x_t,
                                   __global const float* restrict dirs, __global float* restrict vis_in) {
@@ -100,24 +110,37 @@ __kernel void nerv_bounce_points(const uint n_rays, const uint K, __global const
   store_tiled3(light_in, 6, q, 3, normalize((float3)(ray[8], ray[9], ray[10]) - x));
 }
 
-// The light of bounce q toward x_t per unit albedo a'_q and its g-derivative factor: returns
-// (1 - V_q) V'_q I / |p_l - x'_q|^2 (rgb) and p, dp/dg at x'_q through *p, *dp.
-inline float3 bounce_light(__global const float* ray, float4 xb, float3 w, float g, float vis_l, float* p, float* dp) {
+// The light bounce q sends toward x_t per unit albedo a'_q (the bracket of L_k times 1 - V_q), and its
+// derivative in g'_q through *dS. Environment: n_env directions and RGB weights (tiled n_env x 3) and the
+// visibility MLP's outputs at rows q n_env + j of env_vd (vd_cols columns, V first).
+inline float3 bounce_light(__global const float* ray, float4 xb, float3 w, float g, float vis_l, uint q, uint n_env,
+                           __global const float* env_dirs, __global const float* env_weights,
+                           __global const float* env_vd, uint vd_cols, float3* dS) {
   const float3 to_l = (float3)(ray[8], ray[9], ray[10]) - xb.xyz;
   const float r2 = fmax(dot(to_l, to_l), 1e-8f);
   const float mu = dot(-w, to_l * rsqrt(r2));
-  *p = hg_phase(mu, g);
-  *dp = hg_dphase_dg(mu, g);
-  return (float3)(ray[12], ray[13], ray[14]) * (xb.w * vis_l / r2);
+  const float3 I = (float3)(ray[12], ray[13], ray[14]) * (vis_l / r2);
+  float3 S = hg_phase(mu, g) * I, dS_dg = hg_dphase_dg(mu, g) * I;
+  for (uint j = 0; j < n_env; ++j) {
+    const float mu_j = dot(-w, tiled3(env_dirs, 3, j, 0));
+    const float3 e = tiled3(env_weights, 3, j, 0) * env_vd[TILED_AT(vd_cols, q * n_env + j, 0)];
+    S = fma(hg_phase(mu_j, g), e, S);
+    dS_dg = fma(hg_dphase_dg(mu_j, g), e, dS_dg);
+  }
+  *dS = dS_dg * xb.w;
+  return S * xb.w;
 }
 
-// colour_r += W_r ⊙ E_r (colour: n_rays x 3 rows); E_r into `indirect` (float4 rows, for the backward pass).
+// colour_r = direct_r + W_r ⊙ E_r (n_rays x 3 rows; the renderer's backward pass needs its own colour, the
+// direct one, unchanged); E_r into `indirect` (float4 rows, for the backward pass).
 // bprops: the property MLP's outputs at the bounce points and x_t (sigma, albedo, tanh g, ...), g = g_scale tanh.
 __kernel void nerv_indirect(const uint n_rays, const uint K, __global const float* restrict rays,
                             __global const float* restrict dirs, __global const float4* restrict x_b,
                             __global const float* restrict bprops, const uint bcols, const float g_scale,
-                            __global const float* restrict light_vis, const uint lv_cols,
-                            __global const float4* restrict albedo_sum, __global float* restrict color,
+                            __global const float* restrict light_vis, const uint lv_cols, const uint n_env,
+                            __global const float* restrict env_dirs, __global const float* restrict env_weights,
+                            __global const float* restrict env_vd, __global const float4* restrict albedo_sum,
+                            __global const float* restrict direct, __global float* restrict color,
                             __global float4* restrict indirect) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
@@ -129,17 +152,18 @@ __kernel void nerv_indirect(const uint n_rays, const uint K, __global const floa
   for (uint k = 0; k < K; ++k) {
     const uint q = r * K + k;
     const float3 w = tiled3(dirs, 3, k, 0);
-    float p, dp;
-    const float3 L = bounce_light(ray, x_b[q], w, g_scale * bprops[TILED_AT(bcols, q, 4)],
-                                  light_vis[TILED_AT(lv_cols, q, 0)], &p, &dp);
-    E = fma(hg_phase(dot(-d, w), g_t) * p * tiled3(bprops, bcols, q, 1), L, E);
+    float3 dS;
+    const float3 S = bounce_light(ray, x_b[q], w, g_scale * bprops[TILED_AT(bcols, q, 4)],
+                                  light_vis[TILED_AT(lv_cols, q, 0)], q, n_env, env_dirs, env_weights, env_vd, lv_cols,
+                                  &dS);
+    E = fma(hg_phase(dot(-d, w), g_t) * tiled3(bprops, bcols, q, 1), S, E);
   }
   E *= 4.0f * M_PI_F / K;
   indirect[r] = (float4)(E, 0.0f);
   const float3 W = albedo_sum[r].xyz;
-  color[3 * r + 0] += W.x * E.x;
-  color[3 * r + 1] += W.y * E.y;
-  color[3 * r + 2] += W.z * E.z;
+  color[3 * r + 0] = fma(W.x, E.x, direct[3 * r + 0]);
+  color[3 * r + 1] = fma(W.y, E.y, direct[3 * r + 1]);
+  color[3 * r + 2] = fma(W.z, E.z, direct[3 * r + 2]);
 }
 
 // Backward of nerv_indirect given dL/dcolour (rows): dL/d(albedo, g) at the bounce points and dL/dg at x_t
@@ -148,7 +172,9 @@ __kernel void nerv_indirect(const uint n_rays, const uint K, __global const floa
 __kernel void nerv_indirect_backward(const uint n_rays, const uint K, __global const float* restrict rays,
                                      __global const float* restrict dirs, __global const float4* restrict x_b,
                                      __global const float* restrict bprops, const uint bcols, const float g_scale,
-                                     __global const float* restrict light_vis, const uint lv_cols,
+                                     __global const float* restrict light_vis, const uint lv_cols, const uint n_env,
+                                     __global const float* restrict env_dirs, __global const float* restrict env_weights,
+                                     __global const float* restrict env_vd,
                                      __global const float4* restrict albedo_sum, __global const float4* restrict indirect,
                                      __global const float* restrict d_color, __global float* restrict d_bprops,
                                      __global float4* restrict dw) {
@@ -167,18 +193,19 @@ __kernel void nerv_indirect_backward(const uint n_rays, const uint K, __global c
     const float3 w = tiled3(dirs, 3, k, 0);
     const float mu_t = dot(-d, w);
     const float g = g_scale * bprops[TILED_AT(bcols, q, 4)];
-    float p, dp;
-    const float3 L = bounce_light(ray, x_b[q], w, g, light_vis[TILED_AT(lv_cols, q, 0)], &p, &dp);
+    float3 dS;
+    const float3 S = bounce_light(ray, x_b[q], w, g, light_vis[TILED_AT(lv_cols, q, 0)], q, n_env, env_dirs,
+                                  env_weights, env_vd, lv_cols, &dS);
     const float3 a = tiled3(bprops, bcols, q, 1);
     const float pt = hg_phase(mu_t, g_t);
-    const float3 da = pt * p * L * dE;  // dL/da'_q
+    const float3 da = pt * S * dE;  // dL/da'_q
     d_bprops[TILED_AT(bcols, q, 0)] = 0.0f;
     d_bprops[TILED_AT(bcols, q, 1)] = da.x;
     d_bprops[TILED_AT(bcols, q, 2)] = da.y;
     d_bprops[TILED_AT(bcols, q, 3)] = da.z;
-    d_bprops[TILED_AT(bcols, q, 4)] = g_scale * pt * dp * dot(a * L, dE);
+    d_bprops[TILED_AT(bcols, q, 4)] = g_scale * pt * dot(a * dS, dE);
     for (uint c = 5; c < bcols; ++c) d_bprops[TILED_AT(bcols, q, c)] = 0.0f;
-    dg_t += hg_dphase_dg(mu_t, g_t) * p * dot(a * L, dE);
+    dg_t += hg_dphase_dg(mu_t, g_t) * dot(a * S, dE);
   }
   for (uint c = 0; c < bcols; ++c) d_bprops[TILED_AT(bcols, nq + r, c)] = 0.0f;
   d_bprops[TILED_AT(bcols, nq + r, 4)] = g_scale * dg_t;

@@ -199,7 +199,7 @@ void NeRV::configure_extra(config::Reader& r, config::Docs* docs) {
 
 std::uint32_t NeRV::queries_per_ray() const {
   const std::uint32_t env = has_environment() ? env_dirs() : 0;
-  return m_settings.renderer.n_samples * (1 + env) + 3 * bounce_dirs(env > 0) + 1;
+  return m_settings.renderer.n_samples * (1 + env) + (3 + env) * bounce_dirs(env > 0) + 1;
 }
 
 void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& o) const {
@@ -215,6 +215,7 @@ void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, co
   ensure(pass.x_t, m_device, 4 * std::size_t(n_rays));
   ensure(pass.indirect, m_device, 4 * std::size_t(n_rays));
   ensure(pass.dw, m_device, 4 * std::size_t(n_rays));
+  ensure(pass.total, m_device, 3 * std::size_t(n_rays));
   ensure(pass.x_b, m_device, 4 * std::size_t(nq));
   fit(pass.bounce_in, m_device, nq, 6);
   fit(pass.bounce_vd, m_device, nq, vd);
@@ -254,11 +255,30 @@ void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, co
   if (o.training) m_property->forward(m_device, theta, pass.bounce_pos, pass.bounce_props, *pass.ws_bounce_property);
   else m_property->inference(m_device, theta, pass.bounce_pos, pass.bounce_props, *pass.ws_bounce_property);
   visibility(pass.light_in, pass.light_vd, *pass.ws_light_vis);
+  // Under an environment, the bounce points see its N_e directions too.
+  pass.env = o.env;
+  const std::uint32_t n_env = o.env ? o.env->size() : 0;
+  fit(pass.env_in, m_device, std::max<std::uint32_t>(nq * n_env, 1), 6);
+  fit(pass.env_vd, m_device, std::max<std::uint32_t>(nq * n_env, 1), vd);
+  if (n_env) {
+    if (!pass.ws_env_vis) pass.ws_env_vis = m_visibility->make_workspace(m_device);
+    m_device.kernel("nerv.cl", "nerv_bounce_env_queries")
+        .args(nq, n_env, pass.x_b, o.env->dirs().data(), pass.env_in.data())
+        .launch(std::size_t(nq) * n_env, 64);
+    visibility(pass.env_in, pass.env_vd, *pass.ws_env_vis);
+  }
+  const Buffer<float>& env_dirs = n_env ? o.env->dirs().data() : pass.env_in.data();
+  const Buffer<float>& env_weights = n_env ? o.env->weights().data() : pass.env_in.data();
   m_device.kernel("nerv.cl", "nerv_indirect")
       .args(n_rays, K, rays, dirs.data(), pass.x_b, pass.bounce_props.data(), pc, g_scale(), pass.light_vd.data(), vd,
-            pass.albedo_sum, pass.color, pass.indirect)
+            n_env, env_dirs, env_weights, pass.env_vd.data(), pass.albedo_sum, pass.color, pass.total, pass.indirect)
       .launch(n_rays, 16);
   if (o.timer) o.timer->mark("indirect bounce forward");
+}
+
+const Buffer<float>& NeRV::color(const ModelPass& base, std::uint32_t i) const {
+  if (i != 0) throw InvalidArgument("NeRV renders one colour per pass, asked for colour " + std::to_string(i));
+  return nerv_pass(const_cast<ModelPass&>(base)).total;
 }
 
 void NeRV::add_property_gradients(OursPass& base, const Branch& branch, const Buffer<float>& rays,
@@ -268,9 +288,13 @@ void NeRV::add_property_gradients(OursPass& base, const Branch& branch, const Bu
   const std::uint32_t n_rays = pass.n_rays, K = pass.n_bounce;
   const std::uint32_t vd = m_visibility->n_output_dims(), pc = m_property->n_output_dims();
   fit(pass.d_bounce_props, m_device, n_rays * K + n_rays, pc);
+  const std::uint32_t n_env = pass.env ? pass.env->size() : 0;
+  const Buffer<float>& env_dirs = n_env ? pass.env->dirs().data() : pass.env_in.data();
+  const Buffer<float>& env_weights = n_env ? pass.env->weights().data() : pass.env_in.data();
   m_device.kernel("nerv.cl", "nerv_indirect_backward")
       .args(n_rays, K, rays, pass.bounce_dirs->dirs().data(), pass.x_b, pass.bounce_props.data(), pc, g_scale(),
-            pass.light_vd.data(), vd, pass.albedo_sum, pass.indirect, d_color, pass.d_bounce_props.data(), pass.dw)
+            pass.light_vd.data(), vd, n_env, env_dirs, env_weights, pass.env_vd.data(), pass.albedo_sum,
+            pass.indirect, d_color, pass.d_bounce_props.data(), pass.dw)
       .launch(n_rays, 16);
   m_device.kernel("nerv.cl", "nerv_samples_backward")
       .args(n_rays, pass.n_samples, pass.delta, pass.props.data(), pass.props.cols(), pass.dw, pass.d_props.data())

@@ -5,8 +5,8 @@
 //                                 (8 outputs), concatenated with the encoded direction, then a head
 //   direct light: one V_ψ query toward the point light per sample (N_e toward an environment), as Ours
 //   one indirect bounce per camera ray: at the expected termination point x_t, K uniform directions ω_k (128,
-//   or 32 under an environment) land at x_t + D(x_t, ω_k) ω_k, whose single-scattered point light comes back
-//   through the phase at x_t (kernels/nerv.cl has the equations)
+//   or 32 under an environment) land at x_t + D(x_t, ω_k) ω_k, whose single-scattered light (point light and
+//   environment) comes back through the phase at x_t (kernels/nerv.cl has the equations)
 //
 // V_ψ is trained against marches of the learned density (V and D, toward the light from camera samples and
 // along the bounce directions from x_t), gradients isolated both ways as Ours.
@@ -29,9 +29,11 @@ struct NeRVPass : OursPass {
   bool keep_termination = false;
   std::unique_ptr<render::IndirectBasis> bounce_dirs;
   Buffer<float> albedo_sum, x_t, x_b, indirect, dw;  // float4 per ray (x_b: per bounce)
-  nn::BatchMatrix bounce_in, bounce_vd, bounce_pos, bounce_props, d_bounce_props, light_in, light_vd;
+  Buffer<float> total;  // the image: the direct colour (OursPass::color, kept for its backward pass) + W ⊙ E
+  nn::BatchMatrix bounce_in, bounce_vd, bounce_pos, bounce_props, d_bounce_props, light_in, light_vd, env_in, env_vd;
+  const render::EnvironmentSamples* env = nullptr;  // the environment of the last render()
   nn::BatchMatrix train_in, train_out, train_target, d_train;
-  std::unique_ptr<nn::Workspace> ws_bounce_vis, ws_light_vis, ws_bounce_property;
+  std::unique_ptr<nn::Workspace> ws_bounce_vis, ws_light_vis, ws_env_vis, ws_bounce_property;
 };
 
 class NeRV : public Ours {
@@ -47,6 +49,7 @@ class NeRV : public Ours {
 
   std::unique_ptr<ModelPass> make_pass() const override { return std::make_unique<NeRVPass>(); }
   void render(ModelPass& pass, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& options) const override;
+  const Buffer<float>& color(const ModelPass& pass, std::uint32_t i) const override;
   void backward(ModelPass& pass, const Buffer<float>& rays, const std::vector<const Buffer<float>*>& d_colors,
                 const PassOptions& options) override;
   void train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
