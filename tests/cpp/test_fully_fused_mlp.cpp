@@ -5,6 +5,7 @@
 #include "mlp_reference.hpp"
 
 #include <relit/nn/fully_fused_mlp.hpp>
+#include <relit/nn/network_with_encoding.hpp>
 #include <relit/nn/registry.hpp>
 
 #include <Eigen/Dense>
@@ -332,3 +333,46 @@ TEST(FullyFusedMLP, BadCallsAreInvalidArguments) {
 
 }  // namespace
 }  // namespace relit::nn
+
+namespace relit {
+namespace {
+
+TEST(NetworkWithInputEncoding, MatricesResizedDownKeepWorking) {
+  // A matrix resized to fewer samples keeps its larger padding (no reallocation), as a pass's scratch does for
+  // the last, smaller tile of an image; inference and training on it give what fresh matrices give.
+  const Device dev = test::test_device();
+  auto net = nn::NetworkWithInputEncoding::create(
+      {{"encoding", {{"type", "HashGrid"}, {"n_levels", 4}, {"log2_hashmap_size", 10}, {"base_resolution", 4}}},
+       {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 16}, {"n_hidden_layers", 1}}}},
+      3, 2);
+  std::vector<float> params(net->n_params());
+  net->initialize_params(params.data(), 4);
+  Buffer<float> p(dev, params), g(dev, params.size());
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<float> x(100 * 3);
+  for (auto& v : x) v = u(rng);
+  nn::BatchMatrix fresh_in(dev, 100, 3), fresh_out(dev, 100, 2), big_in(dev, 1000, 3), big_out(dev, 1000, 2);
+  fresh_in.upload_row_major(x);
+  big_in.resize(100);
+  big_out.resize(100);
+  ASSERT_GT(big_in.padded(), fresh_in.padded());
+  big_in.upload_row_major(x);
+  auto ws = net->make_workspace(dev);
+  net->inference(dev, {&p, 0}, fresh_in, fresh_out, *ws);
+  const auto want = fresh_out.download_row_major();
+  net->inference(dev, {&p, 0}, big_in, big_out, *ws);
+  EXPECT_EQ(big_out.download_row_major(), want);
+  net->forward(dev, {&p, 0}, big_in, big_out, *ws);
+  EXPECT_EQ(big_out.download_row_major(), want);
+  nn::BatchMatrix d_out(dev, 1000, 2);
+  d_out.resize(100);
+  d_out.upload_row_major(std::vector<float>(200, 1.0f));
+  net->backward(dev, {&p, 0}, big_in, big_out, d_out, {&g, 0}, false, nullptr, *ws);
+  double sum = 0;
+  for (float v : g.read()) sum += std::fabs(v);
+  EXPECT_GT(sum, 0.0);
+}
+
+}  // namespace
+}  // namespace relit

@@ -59,13 +59,13 @@ class TwoStageNetwork final : public nn::Network {
                 nn::BatchMatrix* d_input, nn::Workspace& workspace) const override {
     (void)input;
     Work& w = work(workspace);
-    const std::uint32_t n = output.batch(), nt = m_trunk->n_output_dims();
-    fit(w.d_head_in, device, n, nt + m_dir);
-    fit(w.d_trunk_out, device, n, nt);
+    const std::uint32_t nt = m_trunk->n_output_dims();
+    fit(w.d_head_in, device, output, nt + m_dir);
+    fit(w.d_trunk_out, device, output, nt);
     m_head->backward(device, {params.buffer, params.offset + m_trunk->n_params()}, w.head_in, output, d_output,
                      {grads.buffer, grads.offset + m_trunk->n_params()}, accumulate, &w.d_head_in, *w.head);
     nn::copy_columns(device, w.d_head_in, 0, w.d_trunk_out, 0, nt);
-    if (d_input) fit(w.d_trunk_in, device, n, m_pos);
+    if (d_input) fit(w.d_trunk_in, device, output, m_pos);
     m_trunk->backward(device, params, w.trunk_in, w.trunk_out, w.d_trunk_out, grads, accumulate,
                       d_input ? &w.d_trunk_in : nullptr, *w.trunk);
     if (d_input) {
@@ -75,9 +75,10 @@ class TwoStageNetwork final : public nn::Network {
   }
 
  private:
-  static void fit(nn::BatchMatrix& m, const Device& device, std::uint32_t batch, std::uint32_t cols) {
-    if (m.cols() != cols || m.padded() != nn::padded_batch(batch)) m = nn::BatchMatrix(device, batch, cols);
-    m.resize(batch);
+  // `m` with `cols` columns and the rows (batch and padding) of `like`, as NetworkWithInputEncoding's scratch.
+  static void fit(nn::BatchMatrix& m, const Device& device, const nn::BatchMatrix& like, std::uint32_t cols) {
+    if (m.cols() != cols || m.padded() != like.padded()) m = nn::BatchMatrix(device, like.padded(), cols);
+    m.resize(like.batch());
   }
   static Work& work(nn::Workspace& w) {
     auto* p = dynamic_cast<Work*>(&w);
@@ -86,10 +87,10 @@ class TwoStageNetwork final : public nn::Network {
   }
   void run(const Device& device, nn::ConstParamSlice params, const nn::BatchMatrix& input, nn::BatchMatrix& output,
            Work& w, bool training) const {
-    const std::uint32_t n = input.batch(), nt = m_trunk->n_output_dims();
-    fit(w.trunk_in, device, n, m_pos);
-    fit(w.trunk_out, device, n, nt);
-    fit(w.head_in, device, n, nt + m_dir);
+    const std::uint32_t nt = m_trunk->n_output_dims();
+    fit(w.trunk_in, device, input, m_pos);
+    fit(w.trunk_out, device, input, nt);
+    fit(w.head_in, device, input, nt + m_dir);
     nn::copy_columns(device, input, 0, w.trunk_in, 0, m_pos);
     const nn::ConstParamSlice head{params.buffer, params.offset + m_trunk->n_params()};
     if (training) m_trunk->forward(device, params, w.trunk_in, w.trunk_out, *w.trunk);

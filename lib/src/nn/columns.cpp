@@ -19,7 +19,8 @@ void check(const BatchMatrix& src, std::uint32_t src_col, const BatchMatrix& dst
 void copy_columns(const Device& device, const BatchMatrix& src, std::uint32_t src_col, BatchMatrix& dst,
                   std::uint32_t dst_col, std::uint32_t count, float scale, bool accumulate) {
   check(src, src_col, dst, dst_col, count, "copy_columns");
-  const std::uint32_t n_tiles = src.padded() / kBatchTile;
+  // The tiles of the samples (a matrix resized down keeps a larger padding than the other may have).
+  const std::uint32_t n_tiles = (src.batch() + kBatchTile - 1) / kBatchTile;
   device.kernel("columns.cl", "copy_columns")
       .args(n_tiles, count, src.data(), src.cols(), src_col, dst.data(), dst.cols(), dst_col, scale,
             std::uint32_t(accumulate))

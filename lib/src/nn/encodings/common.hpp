@@ -17,8 +17,10 @@ inline void check_matrix(const std::string& who, const char* what, const BatchMa
                           std::to_string(col) + ", " + std::to_string(col + n) +
                           ") do not fit; allocate it with at least " + std::to_string(col + n) + " columns");
   if (reference && (m.batch() != reference->batch() || m.padded() != reference->padded()))
-    throw InvalidArgument(who + ": " + what + " holds " + std::to_string(m.batch()) + " samples but the input holds " +
-                          std::to_string(reference->batch()) + "; resize them to the same batch");
+    throw InvalidArgument(who + ": " + what + " holds " + std::to_string(m.batch()) + " samples (padded to " +
+                          std::to_string(m.padded()) + ") but the input holds " + std::to_string(reference->batch()) +
+                          " (padded to " + std::to_string(reference->padded()) +
+                          "); give them the same batch and padding");
 }
 
 /// Throws InvalidArgument unless the slice holds `n` floats from its offset.
