@@ -149,7 +149,9 @@ void NeRV::configure_extra(config::Reader& r, config::Docs* docs) {
   {
     config::Reader b(r.sub("bounce", Json::object(), "object", "the one indirect bounce per camera ray"),
                      r.pointer("bounce"), "bounce");
-    m_nerv.n_dirs = b.uint("n_dirs", 128, 1, 4096, "K, uniform bounce directions from the expected termination point");
+    m_nerv.n_dirs = b.uint("n_dirs", 128, 1, 4096,
+                           "K of a training step: uniform bounce directions from the expected termination point");
+    m_nerv.n_dirs_render = b.uint("n_dirs_render", 128, 1, 4096, "K when rendering images (the seed's 128)");
     m_nerv.n_dirs_env = b.uint("n_dirs_env", 32, 1, 4096, "K when the scene is also lit by an environment map");
     m_nerv.visibility_fraction = b.number("visibility_fraction", 0.25f, 1e-3f, 1.0f,
                                           "share of each batch's rays whose bounce queries train the visibility net");
@@ -200,13 +202,13 @@ void NeRV::configure_extra(config::Reader& r, config::Docs* docs) {
 
 std::uint32_t NeRV::queries_per_ray() const {
   const std::uint32_t env = has_environment() ? env_dirs() : 0;
-  return m_settings.renderer.n_samples * (1 + env) + (3 + env) * bounce_dirs(env > 0) + 1;
+  return m_settings.renderer.n_samples * (1 + env) + (3 + env) * bounce_dirs(env > 0, false) + 1;
 }
 
 void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& o) const {
   NeRVPass& pass = nerv_pass(base);
   Ours::render(pass, rays, n_rays, o);  // direct light: the samples, σ, albedo, g, V and the colour
-  const std::uint32_t K = bounce_dirs(o.env != nullptr), spr = m_settings.renderer.n_samples;
+  const std::uint32_t K = bounce_dirs(o.env != nullptr, o.training), spr = m_settings.renderer.n_samples;
   const std::uint32_t nq = n_rays * K;
   if (!pass.bounce_dirs || pass.n_bounce != K) pass.bounce_dirs = std::make_unique<render::IndirectBasis>(m_device, K, -1);
   pass.n_bounce = K;

@@ -17,7 +17,8 @@
 namespace relit::method {
 
 struct NeRVSettings {
-  std::uint32_t n_dirs = 128;        ///< K, bounce directions per camera ray ('point' data)
+  std::uint32_t n_dirs = 128;        ///< K, bounce directions per camera ray in a training step ('point' data)
+  std::uint32_t n_dirs_render = 128; ///< K when rendering images ('point' data)
   std::uint32_t n_dirs_env = 32;     ///< K under an environment light ('env+point' data)
   float visibility_fraction = 0.25f; ///< share of rays whose bounce queries also train V_ψ
 };
@@ -43,8 +44,10 @@ class NeRV : public Ours {
 
   std::string method() const override { return "nerv"; }
   const NeRVSettings& nerv_settings() const { return m_nerv; }
-  /// K of a pass: n_dirs, or n_dirs_env with an environment.
-  std::uint32_t bounce_dirs(bool environment) const { return environment ? m_nerv.n_dirs_env : m_nerv.n_dirs; }
+  /// K of a pass: n_dirs (training) or n_dirs_render, or n_dirs_env with an environment.
+  std::uint32_t bounce_dirs(bool environment, bool training) const {
+    return environment ? m_nerv.n_dirs_env : training ? m_nerv.n_dirs : m_nerv.n_dirs_render;
+  }
   std::uint32_t queries_per_ray() const override;
 
   std::unique_ptr<ModelPass> make_pass() const override { return std::make_unique<NeRVPass>(); }
