@@ -445,21 +445,24 @@ void add_pathtracer(std::vector<Case>& cases, const Device& device, bool quick) 
 
 // ---- end-to-end cases --------------------------------------------------------------------------------------
 
-// One training iteration of a preset (1200 rays x 64 samples) and one relit frame (128^2), on a small generated
-// dataset (the cost of a step does not depend on the images' size). Verified: the step's losses are finite and
+// One training iteration of a preset (1200 rays x 64 samples; the baselines' fast presets too) and one relit
+// frame (128^2), on a small generated dataset (the cost of a step does not depend on the images' size). Verified: the step's losses are finite and
 // a second trainer from the same seed reproduces them exactly (training is deterministic).
 void add_e2e(std::vector<Case>& cases, const Device& device, bool quick, const std::string& data_dir) {
-  for (const std::string preset : {"fast", "paper"}) {
+  for (const std::string preset : {"fast", "paper", "bi-fast", "nerv-fast", "ours_brdf-fast"}) {
     Json cfg = method::preset(preset);
     cfg["training"]["validate_every"] = 0;
     cfg["training"]["checkpoint_every"] = 0;
     if (quick) {
       cfg["training"]["batch_rays"] = 64;
       cfg["model"]["renderer"]["n_samples"] = 16;
+      if (cfg["method"] == "bi") cfg["model"]["renderer"]["n_fine_samples"] = 16;
+      if (cfg["method"] == "nerv") cfg["model"]["bounce"]["n_dirs"] = 4;
     }
     auto trainer = std::make_shared<method::Trainer>(device, data_dir, cfg);
     Case c;
     c.name = "train_step_" + preset;
+    std::replace(c.name.begin(), c.name.end(), '-', '_');
     c.family = "e2e";
     c.work = double(cfg["training"]["batch_rays"].get<std::uint32_t>());
     c.unit = "rays";

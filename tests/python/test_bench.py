@@ -56,5 +56,6 @@ def test_end_to_end_suite(tmp_path):
     r, doc = bench(tmp_path, "e2e.json", "--suite", "e2e", "--filter", "fast")
     assert r.returncode == 0, r.stdout + r.stderr
     results = {x["name"]: x for x in doc["devices"][0]["results"]}
-    assert set(results) == {"train_step_fast", "relit_frame_fast"}
+    assert set(results) == {"train_step_fast", "train_step_bi_fast", "train_step_nerv_fast", "train_step_ours_brdf_fast",
+                            "relit_frame_fast"}
     assert all(x["status"] == "ok" and x["throughput"]["unit"] == "rays/s" for x in results.values())
