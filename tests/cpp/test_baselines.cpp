@@ -562,13 +562,7 @@ class MethodsTrain : public ::testing::TestWithParam<std::string> {
  protected:
   static void SetUpTestSuite() {
     s_dir = new test::TempDir("baselines");
-    DatasetSettings s;
-    s.resolution = 12;
-    s.train = 6;
-    s.val = 1;
-    s.test = 1;
-    s.spp = 4;
-    s.seed = 3;
+    const DatasetSettings s = test::tiny_dataset(6, 4);
     generate_dataset(test::test_device(), Scene::from_json(Scene::builtin_json("cloud", 1, 16)), dataset("cloud"), s);
     generate_dataset(test::test_device(), Scene::from_json(Scene::builtin_json("spheres", 1, 16)), dataset("spheres"), s);
   }

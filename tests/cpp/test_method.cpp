@@ -364,13 +364,7 @@ class MethodTrainer : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     s_dir = new test::TempDir("method");
-    DatasetSettings s;
-    s.resolution = 12;
-    s.train = 4;
-    s.val = 1;
-    s.test = 1;
-    s.spp = 2;
-    s.seed = 3;
+    const DatasetSettings s = test::tiny_dataset(4, 2);
     generate_dataset(test::test_device(), Scene::from_json(Scene::builtin_json("cloud", 1, 16)), dataset(), s);
   }
   static void TearDownTestSuite() {

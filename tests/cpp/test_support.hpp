@@ -23,6 +23,18 @@ inline std::vector<Device> devices_under_test() {
 /// The first device under test.
 inline Device test_device() { return devices_under_test().front(); }
 
+/// The settings of the method tests' tiny generated datasets: 12x12 images, one validation and one test view.
+inline DatasetSettings tiny_dataset(std::uint32_t train, std::uint32_t spp, std::uint32_t seed = 3) {
+  DatasetSettings s;
+  s.resolution = 12;
+  s.train = train;
+  s.val = 1;
+  s.test = 1;
+  s.spp = spp;
+  s.seed = seed;
+  return s;
+}
+
 /// Sets an environment variable for the lifetime of the object, restoring the old value after.
 class ScopedEnv {
  public:
