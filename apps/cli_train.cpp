@@ -51,12 +51,7 @@ int run_train(const TrainOptions& o) {
       throw IOError(o.out + " already holds a run (checkpoint.relit); pass --resume to continue it or choose "
                             "another --out");
     config = method::load_run_config(method::config_for_method(o.config, o.method));
-    if (!o.method.empty()) {
-      if (config.contains("method") && config["method"] != o.method)
-        throw ConfigError("/method", "is \"" + config["method"].get<std::string>() + "\" in " + o.config +
-                                         " but --method says " + o.method);
-      config["method"] = o.method;
-    }
+    method::set_method(config, o.method, o.config);
   }
   if (o.seed >= 0) config["training"]["seed"] = o.seed;
   const Device device = Device::select(o.device);

@@ -30,12 +30,7 @@ Json config_from(const py::object& config, const py::object& method_arg) {
   if (py::isinstance<py::str>(config)) c = method::load_run_config(method::config_for_method(config.cast<std::string>(), m));
   else if (py::isinstance<py::dict>(config)) c = json_from_python(config);
   else throw InvalidArgument("config must be a preset name, a .json path or a dict");
-  if (!m.empty()) {
-    method::config_for_method("fast", m);  // an unknown method is an error naming the valid ones
-    if (c.contains("method") && c["method"] != m)
-      throw ConfigError("/method", "is \"" + c["method"].get<std::string>() + "\" but method=\"" + m + "\" was given");
-    c["method"] = m;
-  }
+  method::set_method(c, m, py::isinstance<py::str>(config) ? config.cast<std::string>() : "the config dict");
   return c;
 }
 

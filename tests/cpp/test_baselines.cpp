@@ -49,6 +49,16 @@ method::PassOptions training_options(const render::EnvironmentSamples* env = nul
   return o;
 }
 
+// Ours' keys (sh left to the method's default: 5 for Ours, 1 for Ours + BRDF).
+Json tiny_ours() {
+  return {{"renderer", {{"n_samples", 16}, {"n_dirs", 8}}},
+          {"n_features", 4},
+          {"density_grid", {{"resolution", 8}, {"march_steps", 16}}},
+          {"property", {{"encoding", kFreq}, {"network", kMlp}}},
+          {"indirect", {{"light_encoding", kFreq}, {"network", kMlp}}},
+          {"visibility", {{"position_encoding", kFreq}, {"direction_encoding", kFreq}, {"network", kMlp}}}};
+}
+
 Json tiny_nerv() {
   return {{"renderer", {{"n_samples", 16}}},
           {"bounce", {{"n_dirs", 8}, {"n_dirs_env", 4}}},
@@ -182,12 +192,7 @@ TEST(Methods, ImagesRenderInTilesOfAnySize) {
 TEST(OursBrdf, RenderGradientMatchesFiniteDifferences) {
   // σ, diffuse albedo, roughness and the raw normal through the BRDF renderer, and the l_max = 1 SH head.
   const Device dev = test::test_device();
-  const Json model = {{"renderer", {{"n_samples", 16}, {"n_dirs", 8}}},
-                      {"n_features", 4},
-                      {"density_grid", {{"resolution", 8}, {"march_steps", 16}}},
-                      {"property", {{"encoding", kFreq}, {"network", kMlp}}},
-                      {"indirect", {{"light_encoding", kFreq}, {"network", kMlp}}},
-                      {"visibility", {{"position_encoding", kFreq}, {"direction_encoding", kFreq}, {"network", kMlp}}}};
+  const Json model = tiny_ours();
   method::OursBrdf m(dev, model);
   EXPECT_EQ(m.settings().renderer.scattering, "brdf");
   EXPECT_EQ(m.settings().renderer.sh_lmax, 1);
@@ -576,14 +581,7 @@ class MethodsTrain : public ::testing::TestWithParam<std::string> {
 test::TempDir* MethodsTrain::s_dir = nullptr;
 
 Json tiny_config(const std::string& method) {
-  Json model = method == "bi" ? tiny_bi() : method == "nerv" ? tiny_nerv() : Json::object();
-  if (method == "ours_brdf" || method == "ours")
-    model = {{"renderer", {{"n_samples", 16}, {"n_dirs", 8}}},
-             {"n_features", 4},
-             {"density_grid", {{"resolution", 8}, {"march_steps", 16}}},
-             {"property", {{"encoding", kFreq}, {"network", kMlp}}},
-             {"indirect", {{"light_encoding", kFreq}, {"network", kMlp}}},
-             {"visibility", {{"position_encoding", kFreq}, {"direction_encoding", kFreq}, {"network", kMlp}}}};
+  Json model = method == "bi" ? tiny_bi() : method == "nerv" ? tiny_nerv() : tiny_ours();
   // A small hash grid gives the property net the capacity to fit the scene in a few hundred steps.
   model["property"]["encoding"] = {{"type", "HashGrid"}, {"n_levels", 6}, {"n_features_per_level", 2},
                                    {"log2_hashmap_size", 14}, {"base_resolution", 4}, {"per_level_scale", 1.5}};
@@ -659,6 +657,12 @@ TEST(Methods, UnknownMethodsAndMisplacedKeysAreConfigErrors) {
   bad = tiny_nerv();
   bad["visibility"]["trunk"]["output_heads"] = Json::array();
   EXPECT_THROW(method::NeRV(dev, bad), ConfigError);
+  Json named = {{"method", "bi"}};
+  EXPECT_THROW(method::set_method(named, "nerv", "run.json"), ConfigError);
+  method::set_method(named, "bi", "run.json");
+  Json unnamed = Json::object();
+  method::set_method(unnamed, "nerv", "run.json");
+  EXPECT_EQ(unnamed["method"], "nerv");
   EXPECT_EQ(method::config_for_method("fast", "nerv"), "nerv-fast");
   EXPECT_EQ(method::config_for_method("fast", "ours"), "fast");
   EXPECT_EQ(method::config_for_method("run.json", "bi"), "run.json");

@@ -4,6 +4,8 @@
 #include <relit/method/bi.hpp>
 #include <relit/nn/registry.hpp>
 
+#include "common.hpp"
+
 namespace relit::method {
 
 namespace {
@@ -50,17 +52,12 @@ void NeuralReflectanceField::configure_extra(config::Reader& r, config::Docs* do
   Json net = sub.sub("network", default_coarse()["network"], "component", "the MLP; its heads are set by the model");
   sub.finish();
   if (docs) docs->emplace_back(sub.pointer(), sub.docs());
-  if (!net.is_object()) throw ConfigError(ptr + "/network", "must be a network object, got " + net.dump());
-  for (const char* key : {"output_heads", "output_activation"})
-    if (net.contains(key)) throw ConfigError(ptr + "/network/" + key, "is set by the model; remove it");
-  const Json heads = m_property->network().hyperparams()["output_heads"];
-  net["output_heads"] = heads;
+  net = detail::with_heads(net, ptr + "/network", m_property->network().hyperparams()["output_heads"]);
   auto e = nn::create_encoding(enc, 3, ptr + "/encoding");
   auto n = nn::create_network(net, e->n_output_dims(), m_property->n_output_dims(), ptr + "/network");
   m_coarse = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
   Json res = m_coarse->hyperparams();
-  res["network"].erase("output_heads");
-  res["network"].erase("output_activation");
+  res["network"] = detail::strip_heads(res["network"]);
   r.set_resolved("coarse", res);
 }
 
@@ -76,15 +73,12 @@ std::uint32_t NeuralReflectanceField::queries_per_ray() const {
 void NeuralReflectanceField::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays,
                                     const PassOptions& o) const {
   BiPass& pass = bi_pass(base);
-  const auto& rs = m_settings.renderer;
-  if (!pass.basis) pass.basis = std::make_unique<render::IndirectBasis>(m_device, rs.n_dirs, rs.sh_lmax);
-  pass.basis->draw(o.seed, o.iteration);
+  draw_basis(pass, o);
   const Branch coarse = coarse_branch(), fine = fine_branch();
   forward_branch(pass.coarse, coarse, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(),
                  o.march_visibility, o.timer, o.env, true);
   prepare_branch(pass, fine, n_rays, pass.coarse.n_env);
-  if (pass.t_fine_only.size() < std::size_t(n_rays) * m_n_fine)
-    pass.t_fine_only = Buffer<float>(m_device, std::size_t(n_rays) * m_n_fine);
+  detail::ensure_size(pass.t_fine_only, m_device, std::size_t(n_rays) * m_n_fine);
   sample_fine(m_device, rays, n_rays, coarse.n_samples, pass.coarse.t, pass.coarse.delta, pass.coarse.props, m_n_fine,
               o.training, o.jitter_seed ^ 0x5bd1e995u, pass.t_fine_only, pass.t, pass.delta, pass.positions);
   if (o.timer) o.timer->mark("hierarchical sampling");

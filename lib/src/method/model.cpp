@@ -1,9 +1,52 @@
-// The method registry: the run config's "method" key → the model class.
+// The Model base (storage, StageTimer) and the method registry: the run config's "method" key → the class.
 #include <relit/error.hpp>
 #include <relit/method/bi.hpp>
 #include <relit/method/nerv.hpp>
 
+#include <algorithm>
+#include <chrono>
+
 namespace relit::method {
+
+namespace {
+double now_seconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+}  // namespace
+
+void StageTimer::enable(const Device& device) {
+  m_device = device;
+  m_enabled = true;
+}
+
+void StageTimer::start() {
+  if (!m_enabled) return;
+  m_device.finish();
+  m_last = now_seconds();
+}
+
+void StageTimer::mark(const std::string& stage) {
+  if (!m_enabled) return;
+  m_device.finish();
+  const double t = now_seconds();
+  auto it = std::find_if(m_seconds.begin(), m_seconds.end(), [&](const auto& p) { return p.first == stage; });
+  if (it == m_seconds.end()) m_seconds.emplace_back(stage, t - m_last);
+  else it->second += t - m_last;
+  m_last = t;
+}
+
+void Model::allocate_storage(std::uint32_t n_theta, std::uint32_t n_psi, std::uint32_t grid_resolution) {
+  m_params = Buffer<float>(m_device, n_theta);
+  m_grads = Buffer<float>(m_device, n_theta);
+  m_vis_params = Buffer<float>(m_device, n_psi);
+  m_vis_grads = Buffer<float>(m_device, n_psi);
+  m_grads.fill(0.0f);
+  m_vis_grads.fill(0.0f);
+  const int g = static_cast<int>(grid_resolution);
+  m_grid.dims = {g, g, g};
+  m_grid.sigma = Buffer<float>(m_device, std::size_t(g) * g * g);
+  m_grid.sigma.fill(0.0f);
+}
 
 std::vector<std::string> method_names() { return {"ours", "ours_brdf", "bi", "nerv"}; }
 

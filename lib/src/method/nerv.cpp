@@ -7,6 +7,8 @@
 #include <relit/nn/encodings.hpp>
 #include <relit/nn/registry.hpp>
 
+#include "common.hpp"
+
 #include <algorithm>
 
 namespace relit::method {
@@ -60,12 +62,12 @@ class TwoStageNetwork final : public nn::Network {
     (void)input;
     Work& w = work(workspace);
     const std::uint32_t nt = m_trunk->n_output_dims();
-    fit(w.d_head_in, device, output, nt + m_dir);
-    fit(w.d_trunk_out, device, output, nt);
+    nn::match_rows(w.d_head_in, output, nt + m_dir);
+    nn::match_rows(w.d_trunk_out, output, nt);
     m_head->backward(device, {params.buffer, params.offset + m_trunk->n_params()}, w.head_in, output, d_output,
                      {grads.buffer, grads.offset + m_trunk->n_params()}, accumulate, &w.d_head_in, *w.head);
     nn::copy_columns(device, w.d_head_in, 0, w.d_trunk_out, 0, nt);
-    if (d_input) fit(w.d_trunk_in, device, output, m_pos);
+    if (d_input) nn::match_rows(w.d_trunk_in, output, m_pos);
     m_trunk->backward(device, params, w.trunk_in, w.trunk_out, w.d_trunk_out, grads, accumulate,
                       d_input ? &w.d_trunk_in : nullptr, *w.trunk);
     if (d_input) {
@@ -75,11 +77,6 @@ class TwoStageNetwork final : public nn::Network {
   }
 
  private:
-  // `m` with `cols` columns and the rows (batch and padding) of `like`, as NetworkWithInputEncoding's scratch.
-  static void fit(nn::BatchMatrix& m, const Device& device, const nn::BatchMatrix& like, std::uint32_t cols) {
-    if (m.cols() != cols || m.padded() != like.padded()) m = nn::BatchMatrix(device, like.padded(), cols);
-    m.resize(like.batch());
-  }
   static Work& work(nn::Workspace& w) {
     auto* p = dynamic_cast<Work*>(&w);
     if (!p) throw InvalidArgument("NeRV visibility network: the workspace was made by another component");
@@ -88,9 +85,9 @@ class TwoStageNetwork final : public nn::Network {
   void run(const Device& device, nn::ConstParamSlice params, const nn::BatchMatrix& input, nn::BatchMatrix& output,
            Work& w, bool training) const {
     const std::uint32_t nt = m_trunk->n_output_dims();
-    fit(w.trunk_in, device, input, m_pos);
-    fit(w.trunk_out, device, input, nt);
-    fit(w.head_in, device, input, nt + m_dir);
+    nn::match_rows(w.trunk_in, input, m_pos);
+    nn::match_rows(w.trunk_out, input, nt);
+    nn::match_rows(w.head_in, input, nt + m_dir);
     nn::copy_columns(device, input, 0, w.trunk_in, 0, m_pos);
     const nn::ConstParamSlice head{params.buffer, params.offset + m_trunk->n_params()};
     if (training) m_trunk->forward(device, params, w.trunk_in, w.trunk_out, *w.trunk);
@@ -118,20 +115,7 @@ NeRVPass& nerv_pass(ModelPass& pass) {
   return *p;
 }
 
-void fit(nn::BatchMatrix& m, const Device& device, std::uint32_t batch, std::uint32_t cols) {
-  if (m.cols() != cols || m.padded() != nn::padded_batch(batch)) m = nn::BatchMatrix(device, batch, cols);
-  m.resize(batch);
-}
-
-void ensure(Buffer<float>& b, const Device& device, std::size_t n) {
-  if (b.size() < n) b = Buffer<float>(device, n);
-}
-
-Json without_heads(Json network) {
-  network.erase("output_heads");
-  network.erase("output_activation");
-  return network;
-}
+using detail::ensure_size;
 
 }  // namespace
 
@@ -172,19 +156,15 @@ void NeRV::configure_extra(config::Reader& r, config::Docs* docs) {
                                "the head on [trunk outputs, encoded direction] (outputs: V sigmoid, depth softplus)");
   v.finish();
   if (docs) docs->emplace_back(v.pointer(), v.docs());
-  for (const auto& [key, net] : {std::pair<std::string, Json>{"trunk", trunk_json}, {"network", head_json}}) {
-    if (!net.is_object()) throw ConfigError(ptr + "/" + key, "must be a network object, got " + net.dump());
-    for (const char* k : {"output_heads", "output_activation"})
-      if (net.contains(k)) throw ConfigError(ptr + "/" + key + "/" + k, "is set by the model; remove it");
-  }
   penc["n_dims_to_encode"] = 3;
   denc["n_dims_to_encode"] = 3;
   auto enc = nn::create_encoding({{"type", "Composite"}, {"nested", {penc, denc}}}, 6, ptr);
   const auto& parts = dynamic_cast<const nn::CompositeEncoding&>(*enc).parts();
   const std::uint32_t n_pos = parts[0].encoding->n_output_dims(), n_dir = parts[1].encoding->n_output_dims();
-  Json tj = trunk_json, hj = head_json;
-  tj["output_heads"] = Json::array({{{"n_dims", n_trunk}, {"activation", "None"}}});
-  hj["output_heads"] = Json::array({{{"n_dims", 1}, {"activation", "Sigmoid"}}, {{"n_dims", 1}, {"activation", "Softplus"}}});
+  const Json tj = detail::with_heads(trunk_json, ptr + "/trunk", Json::array({{{"n_dims", n_trunk}, {"activation", "None"}}}));
+  const Json hj = detail::with_heads(head_json, ptr + "/network",
+                                     Json::array({{{"n_dims", 1}, {"activation", "Sigmoid"}},
+                                                  {{"n_dims", 1}, {"activation", "Softplus"}}}));
   auto trunk = nn::create_network(tj, n_pos, n_trunk, ptr + "/trunk");
   auto head = nn::create_network(hj, n_trunk + n_dir, 2, ptr + "/network");
   Json res = v.resolved();
@@ -193,8 +173,8 @@ void NeRV::configure_extra(config::Reader& r, config::Docs* docs) {
   res["direction_encoding"] = nested[1];
   res["position_encoding"].erase("n_dims_to_encode");
   res["direction_encoding"].erase("n_dims_to_encode");
-  res["trunk"] = without_heads(trunk->hyperparams());
-  res["network"] = without_heads(head->hyperparams());
+  res["trunk"] = detail::strip_heads(trunk->hyperparams());
+  res["network"] = detail::strip_heads(head->hyperparams());
   r.set_resolved("visibility", res);
   m_visibility = std::make_unique<nn::NetworkWithInputEncoding>(
       std::move(enc), std::make_unique<TwoStageNetwork>(std::move(trunk), std::move(head), n_pos, n_dir));
@@ -214,18 +194,18 @@ void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, co
   pass.n_bounce = K;
   pass.bounce_dirs->draw(o.seed ^ 0x2545F491u, o.iteration);
   const std::uint32_t vd = m_visibility->n_output_dims(), pc = m_property->n_output_dims();
-  ensure(pass.albedo_sum, m_device, 4 * std::size_t(n_rays));
-  ensure(pass.x_t, m_device, 4 * std::size_t(n_rays));
-  ensure(pass.indirect, m_device, 4 * std::size_t(n_rays));
-  ensure(pass.dw, m_device, 4 * std::size_t(n_rays));
-  ensure(pass.total, m_device, 3 * std::size_t(n_rays));
-  ensure(pass.x_b, m_device, 4 * std::size_t(nq));
-  fit(pass.bounce_in, m_device, nq, 6);
-  fit(pass.bounce_vd, m_device, nq, vd);
-  fit(pass.light_in, m_device, nq, 6);
-  fit(pass.light_vd, m_device, nq, vd);
-  fit(pass.bounce_pos, m_device, nq + n_rays, 3);
-  fit(pass.bounce_props, m_device, nq + n_rays, pc);
+  ensure_size(pass.albedo_sum, m_device, 4 * std::size_t(n_rays));
+  ensure_size(pass.x_t, m_device, 4 * std::size_t(n_rays));
+  ensure_size(pass.indirect, m_device, 4 * std::size_t(n_rays));
+  ensure_size(pass.dw, m_device, 4 * std::size_t(n_rays));
+  ensure_size(pass.total, m_device, 3 * std::size_t(n_rays));
+  ensure_size(pass.x_b, m_device, 4 * std::size_t(nq));
+  nn::ensure_rows(pass.bounce_in, m_device, nq, 6);
+  nn::ensure_rows(pass.bounce_vd, m_device, nq, vd);
+  nn::ensure_rows(pass.light_in, m_device, nq, 6);
+  nn::ensure_rows(pass.light_vd, m_device, nq, vd);
+  nn::ensure_rows(pass.bounce_pos, m_device, nq + n_rays, 3);
+  nn::ensure_rows(pass.bounce_props, m_device, nq + n_rays, pc);
   if (!pass.ws_bounce_vis) {
     pass.ws_bounce_vis = m_visibility->make_workspace(m_device);
     pass.ws_light_vis = m_visibility->make_workspace(m_device);
@@ -261,8 +241,8 @@ void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, co
   // Under an environment, the bounce points see its N_e directions too.
   pass.env = o.env;
   const std::uint32_t n_env = o.env ? o.env->size() : 0;
-  fit(pass.env_in, m_device, std::max<std::uint32_t>(nq * n_env, 1), 6);
-  fit(pass.env_vd, m_device, std::max<std::uint32_t>(nq * n_env, 1), vd);
+  nn::ensure_rows(pass.env_in, m_device, std::max<std::uint32_t>(nq * n_env, 1), 6);
+  nn::ensure_rows(pass.env_vd, m_device, std::max<std::uint32_t>(nq * n_env, 1), vd);
   if (n_env) {
     if (!pass.ws_env_vis) pass.ws_env_vis = m_visibility->make_workspace(m_device);
     m_device.kernel("nerv.cl", "nerv_bounce_env_queries")
@@ -290,7 +270,7 @@ void NeRV::add_property_gradients(OursPass& base, const Branch& branch, const Bu
   NeRVPass& pass = nerv_pass(base);
   const std::uint32_t n_rays = pass.n_rays, K = pass.n_bounce;
   const std::uint32_t vd = m_visibility->n_output_dims(), pc = m_property->n_output_dims();
-  fit(pass.d_bounce_props, m_device, n_rays * K + n_rays, pc);
+  nn::ensure_rows(pass.d_bounce_props, m_device, n_rays * K + n_rays, pc);
   const std::uint32_t n_env = pass.env ? pass.env->size() : 0;
   const Buffer<float>& env_dirs = n_env ? pass.env->dirs().data() : pass.env_in.data();
   const Buffer<float>& env_weights = n_env ? pass.env->weights().data() : pass.env_in.data();
@@ -320,19 +300,16 @@ void NeRV::train_visibility(ModelPass& base, const Buffer<float>& rays, const nn
   (void)rays;
   NeRVPass& pass = nerv_pass(base);
   if (pass.n_bounce == 0) throw InvalidArgument("NeRV::train_visibility: no training render() before");
-  auto subset = [&](float fraction) {
-    return std::max<std::uint32_t>(
-        1, std::min(pass.n_rays, static_cast<std::uint32_t>(pass.n_rays * double(fraction) + 0.5)));
-  };
+  auto subset = [&](float fraction) { return detail::rays_in_share(pass.n_rays, fraction); };
   // Rows [0, m): camera samples toward their point light; rows [m, m + mb): the bounce queries of the first rays.
   // m is a multiple of 16, so the tiled rows of the two parts follow each other.
   const std::uint32_t m = subset(m_settings.visibility_fraction) * pass.n_samples;
   const std::uint32_t mb = subset(m_nerv.visibility_fraction) * pass.n_bounce;
   const std::uint32_t rows = m + mb;
-  fit(pass.train_in, m_device, rows, 6);
-  fit(pass.train_out, m_device, rows, 2);
-  fit(pass.train_target, m_device, rows, 2);
-  fit(pass.d_train, m_device, rows, 2);
+  nn::ensure_rows(pass.train_in, m_device, rows, 6);
+  nn::ensure_rows(pass.train_out, m_device, rows, 2);
+  nn::ensure_rows(pass.train_target, m_device, rows, 2);
+  nn::ensure_rows(pass.d_train, m_device, rows, 2);
   pass.train_in.data().copy_from(pass.vis_in.data(), std::size_t(m) * 6);
   // Whole 16-row tiles of the bounce queries (rows past mb land in the padding, which the loss ignores).
   const std::size_t tiles_rows = std::min<std::size_t>({round_up(mb, 16), pass.bounce_in.padded(),

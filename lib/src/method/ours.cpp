@@ -5,13 +5,16 @@
 #include <relit/nn/columns.hpp>
 #include <relit/nn/registry.hpp>
 
+#include "common.hpp"
+
 #include <algorithm>
-#include <chrono>
 
 namespace relit::method {
 
 namespace {
 
+using detail::strip_heads;
+using detail::with_heads;
 
 Json default_property() {
   return {{"encoding", {{"type", "HashGrid"}, {"n_levels", 12}, {"n_features_per_level", 2}, {"log2_hashmap_size", 17},
@@ -50,28 +53,8 @@ struct SubConfig {
   }
 };
 
-// A network JSON with the output heads the model needs; the user may not set them.
-Json with_heads(Json network, const std::string& pointer, const Json& heads) {
-  if (!network.is_object()) throw ConfigError(pointer, "must be a network object, got " + network.dump());
-  for (const char* key : {"output_heads", "output_activation"})
-    if (network.contains(key))
-      throw ConfigError(pointer + "/" + key, "is set by the model (its heads are fixed by the method); remove it");
-  network["output_heads"] = heads;
-  return network;
-}
-
-Json strip_heads(Json network) {
-  network.erase("output_heads");
-  network.erase("output_activation");
-  return network;
-}
-
 void check_pass(const OursPass& pass, const char* what) {
   if (pass.n_rays == 0) throw InvalidArgument(std::string("Ours::") + what + ": the pass holds no forward results");
-}
-
-double now_seconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 void mark(StageTimer* timer, const char* stage) {
@@ -79,27 +62,6 @@ void mark(StageTimer* timer, const char* stage) {
 }
 
 }  // namespace
-
-void StageTimer::enable(const Device& device) {
-  m_device = device;
-  m_enabled = true;
-}
-
-void StageTimer::start() {
-  if (!m_enabled) return;
-  m_device.finish();
-  m_last = now_seconds();
-}
-
-void StageTimer::mark(const std::string& stage) {
-  if (!m_enabled) return;
-  m_device.finish();
-  const double t = now_seconds();
-  auto it = std::find_if(m_seconds.begin(), m_seconds.end(), [&](const auto& p) { return p.first == stage; });
-  if (it == m_seconds.end()) m_seconds.emplace_back(stage, t - m_last);
-  else it->second += t - m_last;
-  m_last = t;
-}
 
 Ours::Ours(const Device& device, const Json& config, const std::string& pointer) : Model(device) {
   configure(config, pointer, nullptr);
@@ -126,7 +88,7 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
                                    m_variant == Variant::bi ? "stratified samples per ray of the coarse network (a multiple of 16)"
                                                             : "samples per ray (a multiple of 16)");
     if (s.renderer.n_samples % 16) rr.fail("n_samples", "must be a multiple of 16, got " + std::to_string(s.renderer.n_samples));
-    const bool has_sh = m_variant == Variant::ours || m_variant == Variant::ours_brdf;
+    const bool has_sh = has_sh_head();
     if (!has_sh) configure_renderer_extra(rr);
     const bool brdf = m_variant == Variant::ours_brdf;
     if (brdf) s.renderer.scattering = "brdf";
@@ -141,7 +103,7 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     record(rr);
     r.set_resolved("renderer", rr.resolved());
   }
-  if (m_variant == Variant::ours || m_variant == Variant::ours_brdf) {
+  if (has_sh_head()) {
     s.n_features = r.uint("n_features", 11, 1, 256, "feature columns passed from the property net to the SH head");
     s.intensity_reference = r.number("intensity_reference", 1000.0f, 1e-6f, 1e9f,
                                      "I_ref [W/sr]: the SH head predicts indirect light per unit I / I_ref");
@@ -169,7 +131,7 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
                                     "visibility when rendering: the network (as the paper) or a density-grid march");
   Json env_network, env_resolved;
   {
-    const bool env_head = m_variant == Variant::ours || m_variant == Variant::ours_brdf;
+    const bool env_head = has_sh_head();
     SubConfig sub(r, "environment", env_head ? default_environment() : Json::object(),
                   env_head ? "the environment light of 'env+point' data: S_env and the position-only SH head c_env"
                            : "the environment light of 'env+point' data: its direct light S_env",
@@ -280,19 +242,6 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   if (docs) docs->insert(docs->begin() + std::ptrdiff_t(first_doc), {r.pointer(), r.docs()});
 }
 
-void Model::allocate_storage(std::uint32_t n_theta, std::uint32_t n_psi, std::uint32_t grid_resolution) {
-  m_params = Buffer<float>(m_device, n_theta);
-  m_grads = Buffer<float>(m_device, n_theta);
-  m_vis_params = Buffer<float>(m_device, n_psi);
-  m_vis_grads = Buffer<float>(m_device, n_psi);
-  m_grads.fill(0.0f);
-  m_vis_grads.fill(0.0f);
-  const int g = static_cast<int>(grid_resolution);
-  m_grid.dims = {g, g, g};
-  m_grid.sigma = Buffer<float>(m_device, std::size_t(g) * g * g);
-  m_grid.sigma.fill(0.0f);
-}
-
 void Ours::allocate() {
   m_renderer = std::make_unique<render::VolumeRenderer>(m_device, m_settings.renderer);
   allocate_storage(own_params() + n_extra_params(), m_visibility->n_params(), m_settings.grid_resolution);
@@ -337,13 +286,8 @@ void Ours::prepare_branch(OursPass& pass, const Branch& branch, std::uint32_t n_
   const std::uint32_t n_sh = m_renderer->n_sh();
   const std::uint32_t prop_out = prop_heads() + m_settings.n_features;
   const std::uint32_t light_cols = m_settings.n_features + (m_settings.light_conditioned ? 3 : 0);
-  auto ensure = [&](Buffer<float>& b, std::size_t count) {
-    if (b.size() < count) b = Buffer<float>(m_device, count);
-  };
-  auto matrix = [&](nn::BatchMatrix& m, std::uint32_t cols) {
-    if (m.cols() != cols) m = nn::BatchMatrix(m_device, n, cols);
-    m.resize(n);
-  };
+  auto ensure = [&](Buffer<float>& b, std::size_t count) { detail::ensure_size(b, m_device, count); };
+  auto matrix = [&](nn::BatchMatrix& m, std::uint32_t cols) { nn::ensure_rows(m, m_device, n, cols); };
   ensure(pass.t, n);
   ensure(pass.delta, n);
   ensure(pass.color, 3 * std::size_t(n_rays));
@@ -528,10 +472,7 @@ void Ours::visibility_step(OursPass& pass, const Buffer<float>& rays, const nn::
     throw InvalidArgument("Ours::visibility_step: give the environment samples of the forward pass (" +
                           std::to_string(pass.n_env) + " directions), got " + std::to_string(n_env));
   const std::uint32_t spr = pass.n_samples;
-  auto subset = [&](float fraction) {
-    return std::max<std::uint32_t>(
-        1, std::min(pass.n_rays, static_cast<std::uint32_t>(pass.n_rays * double(fraction) + 0.5)));
-  };
+  auto subset = [&](float fraction) { return detail::rays_in_share(pass.n_rays, fraction); };
   // Rows [0, m): the samples of the first rays toward their point light; rows [m, m + m_env N_e): the samples of
   // the first rays toward each environment direction (sample-major). m is a multiple of 16, so the tiled
   // matrices of the two parts simply follow each other.
@@ -539,8 +480,7 @@ void Ours::visibility_step(OursPass& pass, const Buffer<float>& rays, const nn::
   const std::uint32_t m_env = n_env ? subset(m_settings.environment.visibility_fraction) * spr : 0;
   const std::uint32_t rows = m + m_env * n_env;
   auto matrix = [&](nn::BatchMatrix& mat, std::uint32_t cols, std::uint32_t batch) {
-    if (mat.cols() != cols) mat = nn::BatchMatrix(m_device, batch, cols);
-    mat.resize(batch);
+    nn::ensure_rows(mat, m_device, batch, cols);
   };
   matrix(pass.vis_in_sub, 6, rows);
   matrix(pass.positions_sub, 3, m);
@@ -625,11 +565,15 @@ const OursPass& ours_pass(const ModelPass& pass) { return ours_pass(const_cast<M
 
 void Ours::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& o) const {
   OursPass& pass = ours_pass(base);
+  draw_basis(pass, o);
+  forward(pass, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(), o.march_visibility,
+          o.timer, o.env);
+}
+
+void Ours::draw_basis(OursPass& pass, const PassOptions& o) const {
   const auto& rs = m_settings.renderer;
   if (!pass.basis) pass.basis = std::make_unique<render::IndirectBasis>(m_device, rs.n_dirs, rs.sh_lmax);
   pass.basis->draw(o.seed, o.iteration);
-  forward(pass, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(), o.march_visibility,
-          o.timer, o.env);
 }
 
 const Buffer<float>& Ours::color(const ModelPass& pass, std::uint32_t i) const {

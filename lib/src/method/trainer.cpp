@@ -72,6 +72,15 @@ std::string config_for_method(const std::string& spec, const std::string& method
   return method + "-" + spec;
 }
 
+void set_method(Json& config, const std::string& method, const std::string& source) {
+  if (method.empty()) return;
+  config_for_method("fast", method);  // an unknown method is an error naming the valid ones
+  if (config.contains("method") && config["method"] != method)
+    throw ConfigError("/method", "is " + config["method"].dump() + " in " + source + " but the method asked for is " +
+                                     method);
+  config["method"] = method;
+}
+
 // ---- datasets ----------------------------------------------------------------------------------------------
 
 std::vector<float> DatasetSplit::image(std::size_t i) const {

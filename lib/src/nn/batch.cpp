@@ -16,6 +16,16 @@ void BatchMatrix::resize(std::uint32_t batch) {
   m_batch = batch;
 }
 
+void ensure_rows(BatchMatrix& m, const Device& device, std::uint32_t batch, std::uint32_t cols) {
+  if (m.cols() != cols) m = BatchMatrix(device, batch, cols);
+  m.resize(batch);
+}
+
+void match_rows(BatchMatrix& m, const BatchMatrix& like, std::uint32_t cols) {
+  if (m.cols() != cols || m.padded() != like.padded()) m = BatchMatrix(like.device(), like.padded(), cols);
+  m.resize(like.batch());
+}
+
 void BatchMatrix::upload_row_major(const std::vector<float>& host) {
   if (host.size() != static_cast<std::size_t>(m_batch) * m_cols)
     throw InvalidArgument("BatchMatrix::upload_row_major: got " + std::to_string(host.size()) + " values for " +

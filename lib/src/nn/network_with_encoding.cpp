@@ -10,14 +10,6 @@ struct CompositeWorkspace final : Workspace {
   std::unique_ptr<Workspace> encoding, network;
 };
 
-// `m` with `cols` columns and exactly the rows (batch and padding) of `like`: the encodings run over whole
-// tiles of their input and write the same tiles of their output. A matrix resized down keeps its larger
-// padding, so the padding is matched, not recomputed from the batch.
-void match_rows(const Device& device, BatchMatrix& m, const BatchMatrix& like, std::uint32_t cols) {
-  if (m.cols() != cols || m.padded() != like.padded()) m = BatchMatrix(device, like.padded(), cols);
-  m.resize(like.batch());
-}
-
 CompositeWorkspace& cast(Workspace& w) {
   auto* c = dynamic_cast<CompositeWorkspace*>(&w);
   if (!c) throw InvalidArgument("NetworkWithInputEncoding: the workspace was made by another component");
@@ -65,7 +57,7 @@ void NetworkWithInputEncoding::inference(const Device& device, ConstParamSlice p
                                          BatchMatrix& output) const {
   // Without a workspace: encode into a temporary (the workspace overload reuses one).
   BatchMatrix encoded;
-  match_rows(device, encoded, input, m_encoding->n_output_dims());
+  match_rows(encoded, input, m_encoding->n_output_dims());
   auto ew = m_encoding->make_workspace(device);
   m_encoding->forward(device, params, input, encoded, 0, ew.get());
   m_network->inference(device, {params.buffer, params.offset + m_encoding->n_params()}, encoded, output);
@@ -74,7 +66,7 @@ void NetworkWithInputEncoding::inference(const Device& device, ConstParamSlice p
 void NetworkWithInputEncoding::inference(const Device& device, ConstParamSlice params, const BatchMatrix& input,
                                          BatchMatrix& output, Workspace& workspace) const {
   auto& w = cast(workspace);
-  match_rows(device, w.encoded_inference, input, m_encoding->n_output_dims());
+  match_rows(w.encoded_inference, input, m_encoding->n_output_dims());
   m_encoding->forward(device, params, input, w.encoded_inference, 0, w.encoding.get());
   m_network->inference(device, {params.buffer, params.offset + m_encoding->n_params()}, w.encoded_inference, output);
 }
@@ -82,7 +74,7 @@ void NetworkWithInputEncoding::inference(const Device& device, ConstParamSlice p
 void NetworkWithInputEncoding::forward(const Device& device, ConstParamSlice params, const BatchMatrix& input,
                                        BatchMatrix& output, Workspace& workspace) const {
   auto& w = cast(workspace);
-  match_rows(device, w.encoded, input, m_encoding->n_output_dims());
+  match_rows(w.encoded, input, m_encoding->n_output_dims());
   m_encoding->forward(device, params, input, w.encoded, 0, w.encoding.get());
   m_network->forward(device, {params.buffer, params.offset + m_encoding->n_params()}, w.encoded, output, *w.network);
 }
@@ -92,7 +84,7 @@ void NetworkWithInputEncoding::backward(const Device& device, ConstParamSlice pa
                                         bool accumulate, BatchMatrix* d_input, Workspace& workspace) const {
   auto& w = cast(workspace);
   const bool need_d_encoded = m_encoding->n_params() > 0 || d_input;
-  if (need_d_encoded) match_rows(device, w.d_encoded, input, m_encoding->n_output_dims());
+  if (need_d_encoded) match_rows(w.d_encoded, input, m_encoding->n_output_dims());
   m_network->backward(device, {params.buffer, params.offset + m_encoding->n_params()}, w.encoded, output, d_output,
                       {grads.buffer, grads.offset + m_encoding->n_params()}, accumulate,
                       need_d_encoded ? &w.d_encoded : nullptr, *w.network);

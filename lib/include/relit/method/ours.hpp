@@ -159,6 +159,10 @@ class Ours : public Model {
   virtual void configure_extra(config::Reader& r, config::Docs* docs) { (void)r, (void)docs; }
   /// Reads the derived method's own keys of the "renderer" object.
   virtual void configure_renderer_extra(config::Reader& r) { (void)r; }
+  /// Ours and Ours + BRDF have the SH heads and their keys; the baselines do not.
+  bool has_sh_head() const { return m_variant == Variant::ours || m_variant == Variant::ours_brdf; }
+  /// Draws the pass's K indirect directions (and their SH basis) of iteration o.iteration.
+  void draw_basis(OursPass& pass, const PassOptions& o) const;
   /// HG g = g_scale() tanh(raw): 0.95, or 0 for Bi et al.'s isotropic phase (Ours + BRDF: the roughness, 1).
   float g_scale() const { return m_variant == Variant::bi ? 0.0f : m_variant == Variant::ours_brdf ? 1.0f : 0.95f; }
   /// The property net's outputs before the features: sigma, albedo (3), g or roughness, and for Ours + BRDF

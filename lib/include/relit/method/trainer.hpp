@@ -39,6 +39,9 @@ Json preset(const std::string& name);
 /// method ("bi", "nerv"), that method's preset ("bi-fast"); otherwise `spec` itself. Throws InvalidArgument
 /// for an unknown method.
 std::string config_for_method(const std::string& spec, const std::string& method);
+/// Sets a run config's "method" to `method` (nothing when empty): a config that names another method is a
+/// ConfigError naming `source` (where the config came from), an unknown method an InvalidArgument.
+void set_method(Json& config, const std::string& method, const std::string& source);
 /// `spec` is a preset name or the path of a JSON file; throws ConfigError/IOError naming the file on errors.
 Json load_run_config(const std::string& spec);
 

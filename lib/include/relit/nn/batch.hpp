@@ -59,6 +59,15 @@ class BatchMatrix {
   std::uint32_t m_batch = 0, m_padded = 0, m_cols = 0;
 };
 
+/// Sizes `m` as `batch` x `cols` scratch: reallocates when the columns differ, otherwise resize() (which keeps a
+/// larger allocation and its padding).
+void ensure_rows(BatchMatrix& m, const Device& device, std::uint32_t batch, std::uint32_t cols);
+
+/// Makes `m` a `cols`-column matrix with exactly the rows of `like`: its batch and its padding (a matrix resized
+/// down keeps a larger padding than padded_batch() of its batch). Scratch that kernels fill tile by tile
+/// alongside `like` needs this.
+void match_rows(BatchMatrix& m, const BatchMatrix& like, std::uint32_t cols);
+
 /// A slice of a model's flat parameter (or gradient) buffer: where one component's parameters start.
 struct ParamSlice {
   Buffer<float>* buffer = nullptr;

@@ -1,0 +1,41 @@
+// Helpers shared by the methods' sources (private to the library).
+#pragma once
+
+#include <relit/cl/buffer.hpp>
+#include <relit/config.hpp>
+#include <relit/error.hpp>
+
+#include <algorithm>
+#include <cstdint>
+#include <string>
+
+namespace relit::method::detail {
+
+/// A network JSON with the output heads the model needs; the user may not set them.
+inline Json with_heads(Json network, const std::string& pointer, const Json& heads) {
+  if (!network.is_object()) throw ConfigError(pointer, "must be a network object, got " + network.dump());
+  for (const char* key : {"output_heads", "output_activation"})
+    if (network.contains(key))
+      throw ConfigError(pointer + "/" + key, "is set by the model (its heads are fixed by the method); remove it");
+  network["output_heads"] = heads;
+  return network;
+}
+
+/// A network's resolved JSON without the heads the model set (what a config gives back).
+inline Json strip_heads(Json network) {
+  network.erase("output_heads");
+  network.erase("output_activation");
+  return network;
+}
+
+/// The number of a pass's first rays that make up `fraction` of them (at least one).
+inline std::uint32_t rays_in_share(std::uint32_t n_rays, float fraction) {
+  return std::max<std::uint32_t>(1, std::min(n_rays, static_cast<std::uint32_t>(n_rays * double(fraction) + 0.5)));
+}
+
+/// Grows `b` to at least `count` floats (scratch reused across passes).
+inline void ensure_size(Buffer<float>& b, const Device& device, std::size_t count) {
+  if (b.size() < count) b = Buffer<float>(device, count);
+}
+
+}  // namespace relit::method::detail
