@@ -23,8 +23,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const Json kMlp = {{"type", "FullyFusedMLP"}, {"n_neurons", 16}, {"n_hidden_layers", 1}};
-const Json kFreq = {{"type", "Frequency"}, {"n_frequencies", 2}, {"include_input", true}};
+const Json kMlp = test::tiny_mlp();
+const Json kFreq = test::tiny_frequency();
 
 // Small smooth networks (frequency encodings) so that finite differences are meaningful.
 Json tiny_bi() {
@@ -50,14 +50,7 @@ method::PassOptions training_options(const render::EnvironmentSamples* env = nul
 }
 
 // Ours' keys (sh left to the method's default: 5 for Ours, 1 for Ours + BRDF).
-Json tiny_ours() {
-  return {{"renderer", {{"n_samples", 16}, {"n_dirs", 8}}},
-          {"n_features", 4},
-          {"density_grid", {{"resolution", 8}, {"march_steps", 16}}},
-          {"property", {{"encoding", kFreq}, {"network", kMlp}}},
-          {"indirect", {{"light_encoding", kFreq}, {"network", kMlp}}},
-          {"visibility", {{"position_encoding", kFreq}, {"direction_encoding", kFreq}, {"network", kMlp}}}};
-}
+Json tiny_ours() { return test::tiny_ours_model(""); }
 
 Json tiny_nerv() {
   return {{"renderer", {{"n_samples", 16}}},

@@ -21,17 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Small smooth networks (frequency encodings, no hash grid) so that finite differences are meaningful.
-Json tiny_model(const std::string& sh = "1") {
-  const Json mlp = {{"type", "FullyFusedMLP"}, {"n_neurons", 16}, {"n_hidden_layers", 1}};
-  const Json freq = {{"type", "Frequency"}, {"n_frequencies", 2}, {"include_input", true}};
-  return {{"renderer", {{"n_samples", 16}, {"sh", sh}, {"n_dirs", 8}}},
-          {"n_features", 4},
-          {"density_grid", {{"resolution", 8}, {"march_steps", 16}}},
-          {"property", {{"encoding", freq}, {"network", mlp}}},
-          {"indirect", {{"light_encoding", freq}, {"network", mlp}}},
-          {"visibility", {{"position_encoding", freq}, {"direction_encoding", freq}, {"network", mlp}}}};
-}
+Json tiny_model(const std::string& sh = "1") { return test::tiny_ours_model(sh); }
 
 struct Scene1 {
   Camera camera = Camera::look_at({0.3f, -3.5f, 1.0f}, {0, 0, 0}, {0, 0, 1}, 0.7f, 4, 4);

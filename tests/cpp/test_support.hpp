@@ -23,6 +23,24 @@ inline std::vector<Device> devices_under_test() {
 /// The first device under test.
 inline Device test_device() { return devices_under_test().front(); }
 
+/// The method tests' small smooth networks (frequency encodings, no hash grid), so that finite differences
+/// are meaningful.
+inline Json tiny_mlp() { return {{"type", "FullyFusedMLP"}, {"n_neurons", 16}, {"n_hidden_layers", 1}}; }
+inline Json tiny_frequency() { return {{"type", "Frequency"}, {"n_frequencies", 2}, {"include_input", true}}; }
+
+/// A tiny "model" config of Ours' keys; `sh` empty leaves the SH bands to the method's default.
+inline Json tiny_ours_model(const std::string& sh = "1") {
+  const Json mlp = tiny_mlp(), freq = tiny_frequency();
+  Json m = {{"renderer", {{"n_samples", 16}, {"n_dirs", 8}}},
+            {"n_features", 4},
+            {"density_grid", {{"resolution", 8}, {"march_steps", 16}}},
+            {"property", {{"encoding", freq}, {"network", mlp}}},
+            {"indirect", {{"light_encoding", freq}, {"network", mlp}}},
+            {"visibility", {{"position_encoding", freq}, {"direction_encoding", freq}, {"network", mlp}}}};
+  if (!sh.empty()) m["renderer"]["sh"] = sh;
+  return m;
+}
+
 /// The settings of the method tests' tiny generated datasets: 12x12 images, one validation and one test view.
 inline DatasetSettings tiny_dataset(std::uint32_t train, std::uint32_t spp, std::uint32_t seed = 3) {
   DatasetSettings s;
