@@ -8,6 +8,8 @@
 //   LOSS 0  L2             (p - t)^2
 //   LOSS 1  RelativeL2     (p - t)^2 / (sg(p)^2 + eps)             (sg: no gradient through the denominator)
 //   LOSS 2  ToneMappedL2   (m(p) - m(t))^2,  m(x) = x / (1 + |x|)  (x/(1+x) for radiance x >= 0)
+//   LOSS 3  SrgbL2         (s(p) - s(t))^2,  s = the sRGB transfer curve of linear radiance, unclamped above 1
+//                          and odd below 0: s(x) = 12.92 x for |x| <= 0.0031308, else sign(x) (1.055 |x|^(1/2.4) - 0.055)
 #ifndef LOSS
 #define LOSS 0
 #endif
@@ -16,6 +18,19 @@
 #endif
 
 inline float16 tone_map(float16 x) { return x / (1.0f + fabs(x)); }
+
+#define SRGB_KNEE 0.0031308f
+// The sRGB encoding of linear x (see LOSS 3) and its derivative.
+inline float16 srgb(float16 x) {
+  const float16 a = fabs(x);
+  const float16 curve = fma((float16)1.055f, pow(fmax(a, SRGB_KNEE), (float16)(1.0f / 2.4f)), (float16)-0.055f);
+  return copysign(select(curve, 12.92f * a, a <= SRGB_KNEE), x);
+}
+inline float16 srgb_slope(float16 x) {
+  const float16 a = fmax(fabs(x), SRGB_KNEE);
+  const float16 slope = (1.055f / 2.4f) * pow(a, (float16)(1.0f / 2.4f - 1.0f));
+  return select(slope, (float16)12.92f, fabs(x) <= SRGB_KNEE);
+}
 
 __kernel void loss_forward_backward(const uint batch, const uint cols, const float scale, const float inv_count,
                                     __global const float16* restrict prediction, __global const float16* restrict target,
@@ -40,11 +55,15 @@ __kernel void loss_forward_backward(const uint batch, const uint cols, const flo
     const float16 denom = fma(p, p, (float16)(RELATIVE_EPS));
     const float16 value = d * d / denom;
     const float16 grad = 2.0f * d / denom;
-#else
+#elif LOSS == 2
     const float16 d = tone_map(p) - tone_map(t);
     const float16 one_plus = 1.0f + fabs(p);
     const float16 value = d * d;
     const float16 grad = 2.0f * d / (one_plus * one_plus);
+#else
+    const float16 d = srgb(p) - srgb(t);
+    const float16 value = d * d;
+    const float16 grad = 2.0f * d * srgb_slope(p);
 #endif
     sum = fma(value, mask, sum);
     gradient[i] = grad * mask * (scale * inv_count);

@@ -223,7 +223,7 @@ void bind_nn(py::module_& root) {
            "Returns (dL/dx, dL/dparams) for the given dL/d(output).");
   bind_owned_common(net);
 
-  py::class_<PyLoss>(m, "Loss", "Loss(config, device=None): {\"type\": \"L2\" | \"RelativeL2\" | \"ToneMappedL2\"}.")
+  py::class_<PyLoss>(m, "Loss", "Loss(config, device=None): {\"type\": \"L2\" | \"RelativeL2\" | \"ToneMappedL2\" | \"SrgbL2\"}.")
       .def(py::init<const py::object&, const py::object&>(), py::arg("config"), py::arg("device") = py::none())
       .def("evaluate", &PyLoss::evaluate, py::arg("prediction"), py::arg("target"), py::arg("scale") = 1.0f,
            "Returns (mean loss, dL/dprediction times scale).")

@@ -36,6 +36,15 @@ std::pair<double, double> reference(const std::string& type, double p, double t)
     const double den = p * p + 0.01;
     return {(p - t) * (p - t) / den, 2 * (p - t) / den};
   }
+  if (type == "SrgbL2") {
+    const auto srgb = [](double x) {
+      const double a = std::abs(x);
+      return std::copysign(a <= 0.0031308 ? 12.92 * a : 1.055 * std::pow(a, 1 / 2.4) - 0.055, x);
+    };
+    const double a = std::abs(p);
+    const double slope = a <= 0.0031308 ? 12.92 : 1.055 / 2.4 * std::pow(a, 1 / 2.4 - 1);
+    return {(srgb(p) - srgb(t)) * (srgb(p) - srgb(t)), 2 * (srgb(p) - srgb(t)) * slope};
+  }
   const auto m = [](double x) { return x / (1 + std::abs(x)); };
   const double d = m(p) - m(t);
   return {d * d, 2 * d / ((1 + std::abs(p)) * (1 + std::abs(p)))};
@@ -55,11 +64,14 @@ TEST(Loss, HandComputedValues) {
   EXPECT_NEAR(evaluate(d, "RelativeL2", 2, 2, p, t).value, 0.4990497080905296, 1e-6);
   // m(1)=1/2, m(2)=2/3, m(3)=3/4, m(4)=4/5: ((1/2)^2 + 0 + (1/4)^2 + (3/10)^2) / 4
   EXPECT_NEAR(evaluate(d, "ToneMappedL2", 2, 2, p, t).value, 0.100625, 1e-6);
+  // s(x) = 1.055 x^(1/2.4) - 0.055 above the knee: s(0) = 0, s(1) = 1, s(2) = 1.353256, s(3) = 1.612451,
+  // s(4) = 1.824796: (1 + 0 + 0.612451^2 + 0.824796^2) / 4
+  EXPECT_NEAR(evaluate(d, "SrgbL2", 2, 2, p, t).value, 0.513846173696779, 1e-6);
 }
 
 TEST(Loss, MatchesDoubleReferenceOnRandomInputsAndIgnoresPadding) {
   const Device d = test::test_device();
-  for (const std::string type : {"L2", "RelativeL2", "ToneMappedL2"}) {
+  for (const std::string type : {"L2", "RelativeL2", "ToneMappedL2", "SrgbL2"}) {
     for (const std::uint32_t batch : {1u, 77u, 300u}) {
       const std::uint32_t cols = 3;
       std::mt19937 rng(batch);
@@ -82,7 +94,7 @@ TEST(Loss, MatchesDoubleReferenceOnRandomInputsAndIgnoresPadding) {
 
 TEST(Loss, GradientMatchesFiniteDifferences) {
   const Device d = test::test_device();
-  for (const std::string type : {"L2", "ToneMappedL2"}) {  // RelativeL2 stops the gradient by design
+  for (const std::string type : {"L2", "ToneMappedL2", "SrgbL2"}) {  // RelativeL2 stops the gradient by design
     const std::vector<float> p = {0.3f, 1.7f, -0.4f, 2.5f}, t = {0.1f, 2.0f, 0.2f, 1.0f};
     const auto base = evaluate(d, type, 4, 1, p, t);
     for (std::size_t i = 0; i < p.size(); ++i) {

@@ -1,4 +1,4 @@
-// The losses: L2, RelativeL2 and ToneMappedL2, one kernel each (kernels/loss.cl) plus a fixed-order sum.
+// The losses: L2, RelativeL2, ToneMappedL2 and SrgbL2, one kernel each (kernels/loss.cl) plus a fixed-order sum.
 #include <relit/cl/program.hpp>
 #include <relit/nn/registry.hpp>
 
@@ -67,6 +67,11 @@ void register_losses(LossRegistry& registry) {
                                "Reinhard tone mapping of linear HDR radiance",
                [](config::Reader& r) -> std::unique_ptr<Loss> {
                  return std::make_unique<KernelLoss>("ToneMappedL2", 2, 0.0f, with_type("ToneMappedL2", r));
+               });
+  registry.add("SrgbL2", "mean of (s(prediction) - s(target))^2 with s the sRGB transfer curve (unclamped above 1, odd "
+                         "below 0): L2 in the space where PSNR/SSIM are measured",
+               [](config::Reader& r) -> std::unique_ptr<Loss> {
+                 return std::make_unique<KernelLoss>("SrgbL2", 3, 0.0f, with_type("SrgbL2", r));
                });
 }
 
