@@ -6,6 +6,10 @@
 // HashGrid target configuration (instant-ngp's NeRF grid, 3-D): 16 levels x 2 features, T = 2^19, base
 // resolution 16, finest 2048 (per_level_scale 2^(7/15)), batch 76,800 = 1200 rays x 64 samples in ray order.
 // --smoke: tiny sizes, verification only (exit 1 on a wrong result), as run by the test suite.
+//
+// First it measures the device's random-access rates (8-byte reads and read-modify-writes in 256 KiB, 4 MiB
+// and 64 MiB tables, kernels/random_access.cl), and reports beside the hash grid's measured rate the bound
+// those rates put on it: "hash_grid_roofline" (distinct cache lines per sample and level x rate).
 #include <relit/nn/encodings.hpp>
 #include <relit/nn/registry.hpp>
 #include <relit/relit.hpp>
@@ -121,7 +125,60 @@ bool check(bool ok, const std::string& what, double error, Json& report) {
   return ok;
 }
 
-bool bench_hash_grid(const Device& device, const Args& a, Json& report) {
+// The memory roofline of the hash grid (kernels/random_access.cl): the device's rate of independent random
+// 8-byte reads and read-modify-writes in a table of `bytes`, one work-item per compute unit, as many misses
+// in flight as the cores allow. Verified exactly (integer counts in float) before it is timed.
+struct AccessRate {
+  double read_per_s = 0, rmw_per_s = 0;
+};
+
+AccessRate random_access_rate(const Device& device, std::uint64_t bytes, const Args& a, Json& report, bool& ok) {
+  const std::uint32_t entries = static_cast<std::uint32_t>(bytes / 8), mask = entries - 1;
+  const std::uint32_t items = std::max(1u, device.info().compute_units);
+  const std::uint32_t iters = a.smoke ? 256 : (1u << 17);  // 2^21 accesses per work-item
+  const std::uint64_t per_call = static_cast<std::uint64_t>(items) * iters * 16;
+  Buffer<float> table(device, std::vector<float>(static_cast<std::size_t>(entries) * 2, 1.0f)), sums(device, items);
+  Kernel read = device.kernel("random_access.cl", "random_read");
+  read.args(iters, mask, table, sums);
+  read.launch(items, 1);
+  double err = 0;
+  for (float v : sums.read()) err = std::max(err, std::abs(v - 32.0 * iters));
+  Buffer<float> owned(device, std::vector<float>(static_cast<std::size_t>(entries) * 2 * items, 0.0f));
+  Kernel rmw = device.kernel("random_access.cl", "random_rmw");
+  rmw.args(iters, mask, owned);
+  rmw.launch(items, 1);
+  // Replay the kernel's hash for the last work-item: each of its entries must hold its count of visits.
+  std::vector<float> want(static_cast<std::size_t>(entries) * 2, 0.0f);
+  for (std::uint32_t r = 0; r < iters; ++r)
+    for (std::uint32_t l = 0; l < 16; ++l) {
+      std::uint32_t h = (((items - 1) * iters + r) * 16u + l) * 0x9E3779B1u;
+      h ^= h >> 15;
+      h *= 0x85EBCA77u;
+      h ^= h >> 13;
+      want[(h & mask) * 2] += 1.0f;
+      want[(h & mask) * 2 + 1] += 1.0f;
+    }
+  const std::vector<float> got = owned.read();
+  for (std::size_t i = 0; i < want.size(); ++i) err = std::max(err, std::abs(got[(items - 1) * want.size() + i] - double(want[i])));
+  const std::string size = std::to_string(bytes >> 10) + " KiB";
+  ok &= check(err == 0, "random access " + size + " (exact counts)", err, report);
+  AccessRate r;
+  if (!ok || a.smoke) return r;
+  const double t_read = median_time(device, a.reps, [&] { read.launch(items, 1); });
+  const double t_rmw = median_time(device, a.reps, [&] { rmw.launch(items, 1); });
+  r.read_per_s = per_call / t_read;
+  r.rmw_per_s = per_call / t_rmw;
+  report["random_access"].push_back({{"table_bytes", bytes},
+                                     {"work_items", items},
+                                     {"accesses", per_call},
+                                     {"read_per_s", r.read_per_s},
+                                     {"rmw_per_s", r.rmw_per_s}});
+  return r;
+}
+
+// `rates`: the random-access rates by table size (random_access_rate), for the roofline bound.
+bool bench_hash_grid(const Device& device, const Args& a, const std::vector<std::pair<std::uint64_t, AccessRate>>& rates,
+                     Json& report) {
   const Json cfg = {{"type", "HashGrid"},
                     {"n_levels", 16},
                     {"n_features_per_level", 2},
@@ -182,6 +239,38 @@ bool bench_hash_grid(const Device& device, const Args& a, Json& report) {
     enc.forward(device, {&params, 0}, in_random, out, 0, nullptr);
     enc.backward(device, {&params, 0}, in_random, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
   });
+  // Roofline: the distinct 64-byte lines each sample touches per level (x-neighbours mostly share one, as
+  // prime_x = 1), each costing one random access at the measured rate for the level's table size (the
+  // smallest measured table at least as large). The kernels also compute, so this bounds them from above.
+  const std::size_t n_levels = enc.levels().size();
+  std::vector<double> lines(n_levels, 0.0);
+  for (std::uint32_t s = 0; s < a.batch; ++s) {
+    std::vector<std::vector<std::uint32_t>> seen(n_levels);
+    grid_visit(enc, &xs[s * 3], [&](std::uint32_t col, std::uint32_t p, double) {
+      auto& v = seen[col / enc.options().n_features_per_level];
+      if (std::find(v.begin(), v.end(), p / 16) == v.end()) v.push_back(p / 16);
+    });
+    for (std::size_t l = 0; l < n_levels; ++l) lines[l] += static_cast<double>(seen[l].size()) / a.batch;
+  }
+  double fwd_s = 0, bwd_s = 0, total_lines = 0;
+  Json per_level = Json::array();
+  for (std::size_t l = 0; l < n_levels; ++l) {
+    const auto& L = enc.levels()[l];
+    const std::uint64_t bytes = static_cast<std::uint64_t>(L.size) * enc.options().n_features_per_level * 4;
+    AccessRate r = rates.back().second;
+    for (auto it = rates.rbegin(); it != rates.rend(); ++it)
+      if (it->first >= bytes) r = it->second;
+    fwd_s += lines[l] / r.read_per_s;
+    bwd_s += lines[l] / r.rmw_per_s;
+    total_lines += lines[l];
+    per_level.push_back({{"table_bytes", bytes}, {"hashed", L.hashed}, {"lines_per_sample", lines[l]}});
+  }
+  report["hash_grid_roofline"] = {{"lines_per_sample", total_lines},
+                                  {"levels", per_level},
+                                  {"forward_bound_samples_per_s", 1 / fwd_s},
+                                  {"backward_params_bound_samples_per_s", 1 / bwd_s},
+                                  {"forward_backward_bound_samples_per_s", 1 / (fwd_s + bwd_s)},
+                                  {"forward_backward_fraction_of_bound", (fwd_s + bwd_s) / both * a.batch}};
   report["hash_grid"] = {{"config", enc.hyperparams()},
                          {"n_params", enc.n_params()},
                          {"batch", a.batch},
@@ -293,7 +382,12 @@ int main(int argc, char** argv) {
     const Device device = Device::select(a.device);
     Json report = {{"bench", "encodings"}, {"device", device.info().description()}, {"smoke", a.smoke},
                    {"checks", Json::array()}};
-    bool ok = bench_hash_grid(device, a, report);
+    bool ok = true;
+    std::vector<std::pair<std::uint64_t, AccessRate>> rates;
+    const std::vector<std::uint64_t> sizes = a.smoke ? std::vector<std::uint64_t>{64 << 10}
+                                                     : std::vector<std::uint64_t>{256 << 10, 4 << 20, 64 << 20};
+    for (std::uint64_t bytes : sizes) rates.emplace_back(bytes, random_access_rate(device, bytes, a, report, ok));
+    ok &= bench_hash_grid(device, a, rates, report);
     ok &= bench_frequency_and_sh(device, a, report);
     report["ok"] = ok;
     const std::string text = report.dump(2);
