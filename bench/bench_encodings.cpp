@@ -1,15 +1,18 @@
 // bench_encodings: throughput of the encodings on one device, results verified against double-precision
 // host references before anything is timed. Writes JSON (stdout, or --out FILE).
 //
-//   bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--out FILE]
+//   bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--hash-grid-only]
+//                   [--out FILE]
 //
 // HashGrid target configuration (instant-ngp's NeRF grid, 3-D): 16 levels x 2 features, T = 2^19, base
 // resolution 16, finest 2048 (per_level_scale 2^(7/15)), batch 76,800 = 1200 rays x 64 samples in ray order.
 // --smoke: tiny sizes, verification only (exit 1 on a wrong result), as run by the test suite.
 //
-// First it measures the device's random-access rates (8-byte reads and read-modify-writes in 256 KiB, 4 MiB
-// and 64 MiB tables, kernels/random_access.cl), and reports beside the hash grid's measured rate the bound
-// those rates put on it: "hash_grid_roofline" (distinct cache lines per sample and level x rate).
+// First it measures the device's random-access rates (8-byte reads and read-modify-writes, kernels/
+// random_access.cl: in a 256 KiB table, in one table of a hashed level's size (4 MiB at T = 2^19), in 16 such
+// tables used in turn as the levels are, and in one 64 MiB table), and reports beside the hash grid's
+// measured rate the bound those rates put on it: "hash_grid_roofline" (distinct cache lines per sample and
+// level / rate).
 #include <relit/nn/encodings.hpp>
 #include <relit/nn/registry.hpp>
 #include <relit/relit.hpp>
@@ -33,7 +36,7 @@ using nn::HashGridEncoding;
 namespace {
 
 struct Args {
-  bool smoke = false;
+  bool smoke = false, hash_grid_only = false;
   std::string device, out;
   std::uint32_t batch = 76800, reps = 15, log2_hashmap_size = 19;
 };
@@ -126,49 +129,63 @@ bool check(bool ok, const std::string& what, double error, Json& report) {
 }
 
 // The memory roofline of the hash grid (kernels/random_access.cl): the device's rate of independent random
-// 8-byte reads and read-modify-writes in a table of `bytes`, one work-item per compute unit, as many misses
-// in flight as the cores allow. Verified exactly (integer counts in float) before it is timed.
+// 8-byte reads and read-modify-writes in tables of `bytes`, one work-item per compute unit, as many misses in
+// flight as the cores allow. `tables` > 1: that many tables used in turn, as the hash grid uses its levels'
+// (reads: all work-items walk the same `tables` tables; read-modify-writes: the work-items share them out,
+// each walking tables / work-items of its own, as the backward deals out the levels). Verified exactly
+// (integer counts in float) before it is timed.
 struct AccessRate {
+  std::uint64_t bytes = 0;
+  std::uint32_t tables = 1;
   double read_per_s = 0, rmw_per_s = 0;
 };
 
-AccessRate random_access_rate(const Device& device, std::uint64_t bytes, const Args& a, Json& report, bool& ok) {
+std::uint32_t ra_hash(std::uint32_t counter) {  // ra_index of random_access.cl, one lane
+  std::uint32_t h = counter * 0x9E3779B1u;
+  h ^= h >> 15;
+  h *= 0x85EBCA77u;
+  return h ^ (h >> 13);
+}
+
+AccessRate random_access_rate(const Device& device, std::uint64_t bytes, std::uint32_t tables, const Args& a,
+                              Json& report, bool& ok) {
   const std::uint32_t entries = static_cast<std::uint32_t>(bytes / 8), mask = entries - 1;
   const std::uint32_t items = std::max(1u, device.info().compute_units);
   const std::uint32_t iters = a.smoke ? 256 : (1u << 17);  // 2^21 accesses per work-item
   const std::uint64_t per_call = static_cast<std::uint64_t>(items) * iters * 16;
-  Buffer<float> table(device, std::vector<float>(static_cast<std::size_t>(entries) * 2, 1.0f)), sums(device, items);
+  const std::size_t floats = static_cast<std::size_t>(entries) * 2;  // one table
+  Buffer<float> shared(device, std::vector<float>(floats * tables, 1.0f)), sums(device, items);
   Kernel read = device.kernel("random_access.cl", "random_read");
-  read.args(iters, mask, table, sums);
+  read.args(iters, mask, tables, shared, sums);
   read.launch(items, 1);
   double err = 0;
   for (float v : sums.read()) err = std::max(err, std::abs(v - 32.0 * iters));
-  Buffer<float> owned(device, std::vector<float>(static_cast<std::size_t>(entries) * 2 * items, 0.0f));
+  const std::uint32_t own = std::max(1u, tables / items);  // tables per work-item
+  Buffer<float> owned(device, std::vector<float>(floats * own * items, 0.0f));
   Kernel rmw = device.kernel("random_access.cl", "random_rmw");
-  rmw.args(iters, mask, owned);
+  rmw.args(iters, mask, own, owned);
   rmw.launch(items, 1);
   // Replay the kernel's hash for the last work-item: each of its entries must hold its count of visits.
-  std::vector<float> want(static_cast<std::size_t>(entries) * 2, 0.0f);
+  std::vector<float> want(floats * own, 0.0f);
   for (std::uint32_t r = 0; r < iters; ++r)
     for (std::uint32_t l = 0; l < 16; ++l) {
-      std::uint32_t h = (((items - 1) * iters + r) * 16u + l) * 0x9E3779B1u;
-      h ^= h >> 15;
-      h *= 0x85EBCA77u;
-      h ^= h >> 13;
-      want[(h & mask) * 2] += 1.0f;
-      want[(h & mask) * 2 + 1] += 1.0f;
+      const std::size_t t = static_cast<std::uint64_t>(r) * own / iters;
+      const std::size_t e = t * entries + (ra_hash(((items - 1) * iters + r) * 16u + l) & mask);
+      want[e * 2] += 1.0f;
+      want[e * 2 + 1] += 1.0f;
     }
   const std::vector<float> got = owned.read();
   for (std::size_t i = 0; i < want.size(); ++i) err = std::max(err, std::abs(got[(items - 1) * want.size() + i] - double(want[i])));
-  const std::string size = std::to_string(bytes >> 10) + " KiB";
-  ok &= check(err == 0, "random access " + size + " (exact counts)", err, report);
-  AccessRate r;
+  const std::string what = std::to_string(bytes >> 10) + " KiB" + (tables > 1 ? " x " + std::to_string(tables) + " in turn" : "");
+  ok &= check(err == 0, "random access " + what + " (exact counts)", err, report);
+  AccessRate r{bytes, tables};
   if (!ok || a.smoke) return r;
   const double t_read = median_time(device, a.reps, [&] { read.launch(items, 1); });
   const double t_rmw = median_time(device, a.reps, [&] { rmw.launch(items, 1); });
   r.read_per_s = per_call / t_read;
   r.rmw_per_s = per_call / t_rmw;
   report["random_access"].push_back({{"table_bytes", bytes},
+                                     {"tables_in_turn", tables},
                                      {"work_items", items},
                                      {"accesses", per_call},
                                      {"read_per_s", r.read_per_s},
@@ -176,9 +193,13 @@ AccessRate random_access_rate(const Device& device, std::uint64_t bytes, const A
   return r;
 }
 
-// `rates`: the random-access rates by table size (random_access_rate), for the roofline bound.
-bool bench_hash_grid(const Device& device, const Args& a, const std::vector<std::pair<std::uint64_t, AccessRate>>& rates,
-                     Json& report) {
+// `rates`: the random-access rates (random_access_rate) for the roofline: in a 256 KiB table (cached), in
+// one table of the grid's hashed-level size (`warm`), and in n_levels such tables in turn (`in_turn`).
+struct Rates {
+  AccessRate cached, warm, in_turn;
+};
+
+bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Json& report) {
   const Json cfg = {{"type", "HashGrid"},
                     {"n_levels", 16},
                     {"n_features_per_level", 2},
@@ -240,8 +261,10 @@ bool bench_hash_grid(const Device& device, const Args& a, const std::vector<std:
     enc.backward(device, {&params, 0}, in_random, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
   });
   // Roofline: the distinct 64-byte lines each sample touches per level (x-neighbours mostly share one, as
-  // prime_x = 1), each costing one random access at the measured rate for the level's table size (the
-  // smallest measured table at least as large). The kernels also compute, so this bounds them from above.
+  // prime_x = 1), each costing one random access at the measured rate: the cached rate for tables of at most
+  // 256 KiB, else the rate of tables used in turn (the kernels' level-major order: each pass brings every
+  // large table back from memory), and, for comparison, the rate if every table stayed cached (`warm`).
+  // The kernels also compute, so these bound them from above.
   const std::size_t n_levels = enc.levels().size();
   std::vector<double> lines(n_levels, 0.0);
   for (std::uint32_t s = 0; s < a.batch; ++s) {
@@ -252,16 +275,18 @@ bool bench_hash_grid(const Device& device, const Args& a, const std::vector<std:
     });
     for (std::size_t l = 0; l < n_levels; ++l) lines[l] += static_cast<double>(seen[l].size()) / a.batch;
   }
-  double fwd_s = 0, bwd_s = 0, total_lines = 0;
+  double fwd_s = 0, bwd_s = 0, fwd_warm_s = 0, bwd_warm_s = 0, total_lines = 0;
   Json per_level = Json::array();
   for (std::size_t l = 0; l < n_levels; ++l) {
     const auto& L = enc.levels()[l];
     const std::uint64_t bytes = static_cast<std::uint64_t>(L.size) * enc.options().n_features_per_level * 4;
-    AccessRate r = rates.back().second;
-    for (auto it = rates.rbegin(); it != rates.rend(); ++it)
-      if (it->first >= bytes) r = it->second;
+    const bool cached = bytes <= rates.cached.bytes;
+    const AccessRate& r = cached ? rates.cached : rates.in_turn;
+    const AccessRate& w = cached ? rates.cached : rates.warm;
     fwd_s += lines[l] / r.read_per_s;
     bwd_s += lines[l] / r.rmw_per_s;
+    fwd_warm_s += lines[l] / w.read_per_s;
+    bwd_warm_s += lines[l] / w.rmw_per_s;
     total_lines += lines[l];
     per_level.push_back({{"table_bytes", bytes}, {"hashed", L.hashed}, {"lines_per_sample", lines[l]}});
   }
@@ -270,7 +295,9 @@ bool bench_hash_grid(const Device& device, const Args& a, const std::vector<std:
                                   {"forward_bound_samples_per_s", 1 / fwd_s},
                                   {"backward_params_bound_samples_per_s", 1 / bwd_s},
                                   {"forward_backward_bound_samples_per_s", 1 / (fwd_s + bwd_s)},
-                                  {"forward_backward_fraction_of_bound", (fwd_s + bwd_s) / both * a.batch}};
+                                  {"forward_backward_fraction_of_bound", (fwd_s + bwd_s) / both * a.batch},
+                                  {"forward_backward_bound_if_tables_stayed_cached_samples_per_s",
+                                   1 / (fwd_warm_s + bwd_warm_s)}};
   report["hash_grid"] = {{"config", enc.hyperparams()},
                          {"n_params", enc.n_params()},
                          {"batch", a.batch},
@@ -367,9 +394,10 @@ int main(int argc, char** argv) {
     else if (s == "--batch") a.batch = static_cast<std::uint32_t>(std::stoul(next()));
     else if (s == "--reps") a.reps = static_cast<std::uint32_t>(std::stoul(next()));
     else if (s == "--out") a.out = next();
+    else if (s == "--hash-grid-only") a.hash_grid_only = true;
     else if (s == "--log2-hashmap-size") a.log2_hashmap_size = static_cast<std::uint32_t>(std::stoul(next()));
     else {
-      std::cerr << "usage: bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--out FILE]\n";
+      std::cerr << "usage: bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--hash-grid-only] [--out FILE]\n";
       return 2;
     }
   }
@@ -383,12 +411,14 @@ int main(int argc, char** argv) {
     Json report = {{"bench", "encodings"}, {"device", device.info().description()}, {"smoke", a.smoke},
                    {"checks", Json::array()}};
     bool ok = true;
-    std::vector<std::pair<std::uint64_t, AccessRate>> rates;
-    const std::vector<std::uint64_t> sizes = a.smoke ? std::vector<std::uint64_t>{64 << 10}
-                                                     : std::vector<std::uint64_t>{256 << 10, 4 << 20, 64 << 20};
-    for (std::uint64_t bytes : sizes) rates.emplace_back(bytes, random_access_rate(device, bytes, a, report, ok));
+    Rates rates;
+    const std::uint64_t table = 8ull << (a.smoke ? 14 : a.log2_hashmap_size);  // a hashed level's, 2 features
+    rates.cached = random_access_rate(device, a.smoke ? 64 << 10 : 256 << 10, 1, a, report, ok);
+    rates.warm = random_access_rate(device, table, 1, a, report, ok);
+    rates.in_turn = random_access_rate(device, table, 16, a, report, ok);
+    if (!a.smoke) random_access_rate(device, 64 << 20, 1, a, report, ok);  // every level's table at once
     ok &= bench_hash_grid(device, a, rates, report);
-    ok &= bench_frequency_and_sh(device, a, report);
+    if (!a.hash_grid_only) ok &= bench_frequency_and_sh(device, a, report);
     report["ok"] = ok;
     const std::string text = report.dump(2);
     if (a.out.empty()) std::cout << text << "\n";

@@ -5,11 +5,16 @@
 // float2 entries (a power of two). The entry indices come from a hash of a counter, never from loaded data,
 // so the accesses are independent and the out-of-order core overlaps as many misses as it can: this is the
 // best case for random accesses, the rate a kernel whose loads all miss cannot beat.
-//   random_read:  sums the entries it reads (one shared table: work-item g reads `table`).
-//   random_rmw:   adds to the entries (entry += 1), load + store: the parameter-gradient scatter. Work-item g
-//                 owns its own table at table + g * (mask + 1), as a level is owned in the hash-grid backward,
-//                 so there are no races and the result is exact: every entry ends at its count of visits.
+//   random_read:  sums the entries it reads; all work-items read the same table(s).
+//   random_rmw:   adds to the entries (entry += 1), load + store: the parameter-gradient scatter. Each work-item
+//                 owns its tables, as a level is owned in the hash-grid backward, so there are no races and
+//                 the result is exact: every entry ends at its count of visits.
 // Every lane of every round has its own counter: lane l of round r of item g hashes (g * iters + r) * 16 + l.
+//
+// Tables in turn, the hash grid's level-major order, where each level's table is used for a while and then
+// left (so that each pass over the levels brings every table back from memory when together they do not fit
+// in the cache): random_read walks `n_tables` consecutive tables of `mask + 1` entries, round r in table
+// r * n_tables / iters; work-item g of random_rmw walks its own `n_tables` tables, from table g * n_tables.
 
 inline uint16 ra_index(uint gid, uint iters, uint r, uint mask) {
   const uint16 lane = (uint16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
@@ -20,11 +25,12 @@ inline uint16 ra_index(uint gid, uint iters, uint r, uint mask) {
   return h & (uint16)mask;
 }
 
-__kernel void random_read(const uint iters, const uint mask, __global const float2* restrict table,
-                          __global float* restrict out) {
+__kernel void random_read(const uint iters, const uint mask, const uint n_tables,
+                          __global const float2* restrict base, __global float* restrict out) {
   const uint gid = (uint)get_global_id(0);
   float2 acc[4] = {(float2)0.0f, (float2)0.0f, (float2)0.0f, (float2)0.0f};
   for (uint r = 0; r < iters; ++r) {
+    __global const float2* table = base + (size_t)((ulong)r * n_tables / iters) * (mask + 1u);
     const uint16 i = ra_index(gid, iters, r, mask);
     acc[0] += table[i.s0] + table[i.s4] + table[i.s8] + table[i.sc];
     acc[1] += table[i.s1] + table[i.s5] + table[i.s9] + table[i.sd];
@@ -35,10 +41,10 @@ __kernel void random_read(const uint iters, const uint mask, __global const floa
   out[gid] = s.x + s.y;
 }
 
-__kernel void random_rmw(const uint iters, const uint mask, __global float2* restrict table) {
+__kernel void random_rmw(const uint iters, const uint mask, const uint n_tables, __global float2* restrict table) {
   const uint gid = (uint)get_global_id(0);
-  __global float2* t = table + (size_t)gid * (mask + 1u);
   for (uint r = 0; r < iters; ++r) {
+    __global float2* t = table + ((size_t)gid * n_tables + (size_t)((ulong)r * n_tables / iters)) * (mask + 1u);
     uint idx[16];
     vstore16(ra_index(gid, iters, r, mask), 0, idx);
     #pragma unroll
