@@ -25,12 +25,26 @@ inline uint16 ra_index(uint gid, uint iters, uint r, uint mask) {
   return h & (uint16)mask;
 }
 
-__kernel void random_read(const uint iters, const uint mask, const uint n_tables,
+// prefetch != 0: while in a table, also prefetch the next table, a slice per round, sequentially (as the
+// hash-grid kernels do on CPUs), so that its random accesses find it in the cache.
+inline void ra_prefetch(__global const float2* next, uint mask, uint rounds_per_table, uint round_in_table) {
+#if defined(__clang__)
+  const uint lines = (mask + 1u) / 8u;  // 8 entries of 8 bytes per 64-byte line
+  const uint a = (uint)((ulong)lines * round_in_table / rounds_per_table);
+  const uint b = (uint)((ulong)lines * (round_in_table + 1u) / rounds_per_table);
+  for (uint i = a; i < b; ++i) __builtin_prefetch(next + (size_t)i * 8u, 0, 3);
+#endif
+}
+
+__kernel void random_read(const uint iters, const uint mask, const uint n_tables, const uint prefetch,
                           __global const float2* restrict base, __global float* restrict out) {
   const uint gid = (uint)get_global_id(0);
+  const uint per_table = iters / n_tables;
   float2 acc[4] = {(float2)0.0f, (float2)0.0f, (float2)0.0f, (float2)0.0f};
   for (uint r = 0; r < iters; ++r) {
-    __global const float2* table = base + (size_t)((ulong)r * n_tables / iters) * (mask + 1u);
+    const uint k = (uint)((ulong)r * n_tables / iters);
+    __global const float2* table = base + (size_t)k * (mask + 1u);
+    if (prefetch && k + 1u < n_tables) ra_prefetch(table + mask + 1u, mask, per_table, r - k * per_table);
     const uint16 i = ra_index(gid, iters, r, mask);
     acc[0] += table[i.s0] + table[i.s4] + table[i.s8] + table[i.sc];
     acc[1] += table[i.s1] + table[i.s5] + table[i.s9] + table[i.sd];
@@ -41,10 +55,14 @@ __kernel void random_read(const uint iters, const uint mask, const uint n_tables
   out[gid] = s.x + s.y;
 }
 
-__kernel void random_rmw(const uint iters, const uint mask, const uint n_tables, __global float2* restrict table) {
+__kernel void random_rmw(const uint iters, const uint mask, const uint n_tables, const uint prefetch,
+                         __global float2* restrict table) {
   const uint gid = (uint)get_global_id(0);
+  const uint per_table = iters / n_tables;
   for (uint r = 0; r < iters; ++r) {
-    __global float2* t = table + ((size_t)gid * n_tables + (size_t)((ulong)r * n_tables / iters)) * (mask + 1u);
+    const uint k = (uint)((ulong)r * n_tables / iters);
+    __global float2* t = table + ((size_t)gid * n_tables + k) * (mask + 1u);
+    if (prefetch && k + 1u < n_tables) ra_prefetch(t + mask + 1u, mask, per_table, r - k * per_table);
     uint idx[16];
     vstore16(ra_index(gid, iters, r, mask), 0, idx);
     #pragma unroll
