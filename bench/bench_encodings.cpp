@@ -132,11 +132,13 @@ bool check(bool ok, const std::string& what, double error, Json& report) {
 // 8-byte reads and read-modify-writes in tables of `bytes`, one work-item per compute unit, as many misses in
 // flight as the cores allow. `tables` > 1: that many tables used in turn, as the hash grid uses its levels'
 // (reads: all work-items walk the same `tables` tables; read-modify-writes: the work-items share them out,
-// each walking tables / work-items of its own, as the backward deals out the levels). Verified exactly
-// (integer counts in float) before it is timed.
+// each walking tables / work-items of its own, as the backward deals out the levels); `prefetch`: each table
+// is prefetched sequentially while the one before it is in use (as the hash-grid kernels do on CPUs).
+// Verified exactly (integer counts in float) before it is timed.
 struct AccessRate {
   std::uint64_t bytes = 0;
   std::uint32_t tables = 1;
+  bool prefetch = false;
   double read_per_s = 0, rmw_per_s = 0;
 };
 
@@ -147,8 +149,8 @@ std::uint32_t ra_hash(std::uint32_t counter) {  // ra_index of random_access.cl,
   return h ^ (h >> 13);
 }
 
-AccessRate random_access_rate(const Device& device, std::uint64_t bytes, std::uint32_t tables, const Args& a,
-                              Json& report, bool& ok) {
+AccessRate random_access_rate(const Device& device, std::uint64_t bytes, std::uint32_t tables, bool prefetch,
+                              const Args& a, Json& report, bool& ok) {
   const std::uint32_t entries = static_cast<std::uint32_t>(bytes / 8), mask = entries - 1;
   const std::uint32_t items = std::max(1u, device.info().compute_units);
   const std::uint32_t iters = a.smoke ? 256 : (1u << 17);  // 2^21 accesses per work-item
@@ -156,14 +158,14 @@ AccessRate random_access_rate(const Device& device, std::uint64_t bytes, std::ui
   const std::size_t floats = static_cast<std::size_t>(entries) * 2;  // one table
   Buffer<float> shared(device, std::vector<float>(floats * tables, 1.0f)), sums(device, items);
   Kernel read = device.kernel("random_access.cl", "random_read");
-  read.args(iters, mask, tables, shared, sums);
+  read.args(iters, mask, tables, static_cast<std::uint32_t>(prefetch), shared, sums);
   read.launch(items, 1);
   double err = 0;
   for (float v : sums.read()) err = std::max(err, std::abs(v - 32.0 * iters));
   const std::uint32_t own = std::max(1u, tables / items);  // tables per work-item
   Buffer<float> owned(device, std::vector<float>(floats * own * items, 0.0f));
   Kernel rmw = device.kernel("random_access.cl", "random_rmw");
-  rmw.args(iters, mask, own, owned);
+  rmw.args(iters, mask, own, static_cast<std::uint32_t>(prefetch), owned);
   rmw.launch(items, 1);
   // Replay the kernel's hash for the last work-item: each of its entries must hold its count of visits.
   std::vector<float> want(floats * own, 0.0f);
@@ -176,9 +178,10 @@ AccessRate random_access_rate(const Device& device, std::uint64_t bytes, std::ui
     }
   const std::vector<float> got = owned.read();
   for (std::size_t i = 0; i < want.size(); ++i) err = std::max(err, std::abs(got[(items - 1) * want.size() + i] - double(want[i])));
-  const std::string what = std::to_string(bytes >> 10) + " KiB" + (tables > 1 ? " x " + std::to_string(tables) + " in turn" : "");
+  const std::string what = std::to_string(bytes >> 10) + " KiB" + (tables > 1 ? " x " + std::to_string(tables) + " in turn" : "") +
+                           (prefetch ? ", next prefetched" : "");
   ok &= check(err == 0, "random access " + what + " (exact counts)", err, report);
-  AccessRate r{bytes, tables};
+  AccessRate r{bytes, tables, prefetch};
   if (!ok || a.smoke) return r;
   const double t_read = median_time(device, a.reps, [&] { read.launch(items, 1); });
   const double t_rmw = median_time(device, a.reps, [&] { rmw.launch(items, 1); });
@@ -186,6 +189,7 @@ AccessRate random_access_rate(const Device& device, std::uint64_t bytes, std::ui
   r.rmw_per_s = per_call / t_rmw;
   report["random_access"].push_back({{"table_bytes", bytes},
                                      {"tables_in_turn", tables},
+                                     {"next_table_prefetched", prefetch},
                                      {"work_items", items},
                                      {"accesses", per_call},
                                      {"read_per_s", r.read_per_s},
@@ -194,9 +198,10 @@ AccessRate random_access_rate(const Device& device, std::uint64_t bytes, std::ui
 }
 
 // `rates`: the random-access rates (random_access_rate) for the roofline: in a 256 KiB table (cached), in
-// one table of the grid's hashed-level size (`warm`), and in n_levels such tables in turn (`in_turn`).
+// one table of the grid's hashed-level size (`warm`), and in n_levels such tables in turn, each brought in
+// by its random misses (`in_turn`) or prefetched while the one before it is used (`in_turn_prefetched`).
 struct Rates {
-  AccessRate cached, warm, in_turn;
+  AccessRate cached, warm, in_turn, in_turn_prefetched;
 };
 
 bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Json& report) {
@@ -263,7 +268,8 @@ bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Js
   // Roofline: the distinct 64-byte lines each sample touches per level (x-neighbours mostly share one, as
   // prime_x = 1), each costing one random access at the measured rate: the cached rate for tables of at most
   // 256 KiB, else the rate of tables used in turn (the kernels' level-major order: each pass brings every
-  // large table back from memory), and, for comparison, the rate if every table stayed cached (`warm`).
+  // large table back from memory; the faster of with and without prefetching the next table), and, for
+  // comparison, the rate if every table stayed cached (`warm`).
   // The kernels also compute, so these bound them from above.
   const std::size_t n_levels = enc.levels().size();
   std::vector<double> lines(n_levels, 0.0);
@@ -281,10 +287,12 @@ bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Js
     const auto& L = enc.levels()[l];
     const std::uint64_t bytes = static_cast<std::uint64_t>(L.size) * enc.options().n_features_per_level * 4;
     const bool cached = bytes <= rates.cached.bytes;
-    const AccessRate& r = cached ? rates.cached : rates.in_turn;
+    const AccessRate& t = rates.in_turn, &p = rates.in_turn_prefetched;
+    const double read = cached ? rates.cached.read_per_s : std::max(t.read_per_s, p.read_per_s);
+    const double rmw = cached ? rates.cached.rmw_per_s : std::max(t.rmw_per_s, p.rmw_per_s);
     const AccessRate& w = cached ? rates.cached : rates.warm;
-    fwd_s += lines[l] / r.read_per_s;
-    bwd_s += lines[l] / r.rmw_per_s;
+    fwd_s += lines[l] / read;
+    bwd_s += lines[l] / rmw;
     fwd_warm_s += lines[l] / w.read_per_s;
     bwd_warm_s += lines[l] / w.rmw_per_s;
     total_lines += lines[l];
@@ -413,10 +421,11 @@ int main(int argc, char** argv) {
     bool ok = true;
     Rates rates;
     const std::uint64_t table = 8ull << (a.smoke ? 14 : a.log2_hashmap_size);  // a hashed level's, 2 features
-    rates.cached = random_access_rate(device, a.smoke ? 64 << 10 : 256 << 10, 1, a, report, ok);
-    rates.warm = random_access_rate(device, table, 1, a, report, ok);
-    rates.in_turn = random_access_rate(device, table, 16, a, report, ok);
-    if (!a.smoke) random_access_rate(device, 64 << 20, 1, a, report, ok);  // every level's table at once
+    rates.cached = random_access_rate(device, a.smoke ? 64 << 10 : 256 << 10, 1, false, a, report, ok);
+    rates.warm = random_access_rate(device, table, 1, false, a, report, ok);
+    rates.in_turn = random_access_rate(device, table, 16, false, a, report, ok);
+    rates.in_turn_prefetched = random_access_rate(device, table, 16, true, a, report, ok);
+    if (!a.smoke) random_access_rate(device, 64 << 20, 1, false, a, report, ok);  // every level's table at once
     ok &= bench_hash_grid(device, a, rates, report);
     if (!a.hash_grid_only) ok &= bench_frequency_and_sh(device, a, report);
     report["ok"] = ok;
