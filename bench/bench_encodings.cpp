@@ -1,11 +1,18 @@
 // bench_encodings: throughput of the encodings on one device, results verified against double-precision
 // host references before anything is timed. Writes JSON (stdout, or --out FILE).
 //
-//   bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--out FILE]
+//   bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--hash-grid-only]
+//                   [--out FILE]
 //
 // HashGrid target configuration (instant-ngp's NeRF grid, 3-D): 16 levels x 2 features, T = 2^19, base
 // resolution 16, finest 2048 (per_level_scale 2^(7/15)), batch 76,800 = 1200 rays x 64 samples in ray order.
 // --smoke: tiny sizes, verification only (exit 1 on a wrong result), as run by the test suite.
+//
+// First it measures the device's random-access rates (8-byte reads and read-modify-writes, kernels/
+// random_access.cl: in a 256 KiB table, in one table of a hashed level's size (4 MiB at T = 2^19), in 16 such
+// tables used in turn as the levels are, and in one 64 MiB table), and reports beside the hash grid's
+// measured rate the bound those rates put on it: "hash_grid_roofline" (distinct cache lines per sample and
+// level / rate).
 #include <relit/nn/encodings.hpp>
 #include <relit/nn/registry.hpp>
 #include <relit/relit.hpp>
@@ -29,7 +36,7 @@ using nn::HashGridEncoding;
 namespace {
 
 struct Args {
-  bool smoke = false;
+  bool smoke = false, hash_grid_only = false;
   std::string device, out;
   std::uint32_t batch = 76800, reps = 15, log2_hashmap_size = 19;
 };
@@ -121,7 +128,83 @@ bool check(bool ok, const std::string& what, double error, Json& report) {
   return ok;
 }
 
-bool bench_hash_grid(const Device& device, const Args& a, Json& report) {
+// The memory roofline of the hash grid (kernels/random_access.cl): the device's rate of independent random
+// 8-byte reads and read-modify-writes in tables of `bytes`, one work-item per compute unit, as many misses in
+// flight as the cores allow. `tables` > 1: that many tables used in turn, as the hash grid uses its levels'
+// (reads: all work-items walk the same `tables` tables; read-modify-writes: the work-items share them out,
+// each walking tables / work-items of its own, as the backward deals out the levels); `prefetch`: each table
+// is prefetched sequentially while the one before it is in use (as the hash-grid kernels do on CPUs).
+// Verified exactly (integer counts in float) before it is timed.
+struct AccessRate {
+  std::uint64_t bytes = 0;
+  std::uint32_t tables = 1;
+  bool prefetch = false;
+  double read_per_s = 0, rmw_per_s = 0;
+};
+
+std::uint32_t ra_hash(std::uint32_t counter) {  // ra_index of random_access.cl, one lane
+  std::uint32_t h = counter * 0x9E3779B1u;
+  h ^= h >> 15;
+  h *= 0x85EBCA77u;
+  return h ^ (h >> 13);
+}
+
+AccessRate random_access_rate(const Device& device, std::uint64_t bytes, std::uint32_t tables, bool prefetch,
+                              const Args& a, Json& report, bool& ok) {
+  const std::uint32_t entries = static_cast<std::uint32_t>(bytes / 8), mask = entries - 1;
+  const std::uint32_t items = std::max(1u, device.info().compute_units);
+  const std::uint32_t iters = a.smoke ? 256 : (1u << 17);  // 2^21 accesses per work-item
+  const std::uint64_t per_call = static_cast<std::uint64_t>(items) * iters * 16;
+  const std::size_t floats = static_cast<std::size_t>(entries) * 2;  // one table
+  Buffer<float> shared(device, std::vector<float>(floats * tables, 1.0f)), sums(device, items);
+  Kernel read = device.kernel("random_access.cl", "random_read");
+  read.args(iters, mask, tables, static_cast<std::uint32_t>(prefetch), shared, sums);
+  read.launch(items, 1);
+  double err = 0;
+  for (float v : sums.read()) err = std::max(err, std::abs(v - 32.0 * iters));
+  const std::uint32_t own = std::max(1u, tables / items);  // tables per work-item
+  Buffer<float> owned(device, std::vector<float>(floats * own * items, 0.0f));
+  Kernel rmw = device.kernel("random_access.cl", "random_rmw");
+  rmw.args(iters, mask, own, static_cast<std::uint32_t>(prefetch), owned);
+  rmw.launch(items, 1);
+  // Replay the kernel's hash for the last work-item: each of its entries must hold its count of visits.
+  std::vector<float> want(floats * own, 0.0f);
+  for (std::uint32_t r = 0; r < iters; ++r)
+    for (std::uint32_t l = 0; l < 16; ++l) {
+      const std::size_t t = static_cast<std::uint64_t>(r) * own / iters;
+      const std::size_t e = t * entries + (ra_hash(((items - 1) * iters + r) * 16u + l) & mask);
+      want[e * 2] += 1.0f;
+      want[e * 2 + 1] += 1.0f;
+    }
+  const std::vector<float> got = owned.read();
+  for (std::size_t i = 0; i < want.size(); ++i) err = std::max(err, std::abs(got[(items - 1) * want.size() + i] - double(want[i])));
+  const std::string what = std::to_string(bytes >> 10) + " KiB" + (tables > 1 ? " x " + std::to_string(tables) + " in turn" : "") +
+                           (prefetch ? ", next prefetched" : "");
+  ok &= check(err == 0, "random access " + what + " (exact counts)", err, report);
+  AccessRate r{bytes, tables, prefetch};
+  if (!ok || a.smoke) return r;
+  const double t_read = median_time(device, a.reps, [&] { read.launch(items, 1); });
+  const double t_rmw = median_time(device, a.reps, [&] { rmw.launch(items, 1); });
+  r.read_per_s = per_call / t_read;
+  r.rmw_per_s = per_call / t_rmw;
+  report["random_access"].push_back({{"table_bytes", bytes},
+                                     {"tables_in_turn", tables},
+                                     {"next_table_prefetched", prefetch},
+                                     {"work_items", items},
+                                     {"accesses", per_call},
+                                     {"read_per_s", r.read_per_s},
+                                     {"rmw_per_s", r.rmw_per_s}});
+  return r;
+}
+
+// `rates`: the random-access rates (random_access_rate) for the roofline: in a 256 KiB table (cached), in
+// one table of the grid's hashed-level size (`warm`), and in n_levels such tables in turn, each brought in
+// by its random misses (`in_turn`) or prefetched while the one before it is used (`in_turn_prefetched`).
+struct Rates {
+  AccessRate cached, warm, in_turn, in_turn_prefetched;
+};
+
+bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Json& report) {
   const Json cfg = {{"type", "HashGrid"},
                     {"n_levels", 16},
                     {"n_features_per_level", 2},
@@ -182,6 +265,47 @@ bool bench_hash_grid(const Device& device, const Args& a, Json& report) {
     enc.forward(device, {&params, 0}, in_random, out, 0, nullptr);
     enc.backward(device, {&params, 0}, in_random, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
   });
+  // Roofline: the distinct 64-byte lines each sample touches per level (x-neighbours mostly share one, as
+  // prime_x = 1), each costing one random access at the measured rate: the cached rate for tables of at most
+  // 256 KiB, else the rate of tables used in turn (the kernels' level-major order: each pass brings every
+  // large table back from memory; the faster of with and without prefetching the next table), and, for
+  // comparison, the rate if every table stayed cached (`warm`).
+  // The kernels also compute, so these bound them from above.
+  const std::size_t n_levels = enc.levels().size();
+  std::vector<double> lines(n_levels, 0.0);
+  for (std::uint32_t s = 0; s < a.batch; ++s) {
+    std::vector<std::vector<std::uint32_t>> seen(n_levels);
+    grid_visit(enc, &xs[s * 3], [&](std::uint32_t col, std::uint32_t p, double) {
+      auto& v = seen[col / enc.options().n_features_per_level];
+      if (std::find(v.begin(), v.end(), p / 16) == v.end()) v.push_back(p / 16);
+    });
+    for (std::size_t l = 0; l < n_levels; ++l) lines[l] += static_cast<double>(seen[l].size()) / a.batch;
+  }
+  double fwd_s = 0, bwd_s = 0, fwd_warm_s = 0, bwd_warm_s = 0, total_lines = 0;
+  Json per_level = Json::array();
+  for (std::size_t l = 0; l < n_levels; ++l) {
+    const auto& L = enc.levels()[l];
+    const std::uint64_t bytes = static_cast<std::uint64_t>(L.size) * enc.options().n_features_per_level * 4;
+    const bool cached = bytes <= rates.cached.bytes;
+    const AccessRate& t = rates.in_turn, &p = rates.in_turn_prefetched;
+    const double read = cached ? rates.cached.read_per_s : std::max(t.read_per_s, p.read_per_s);
+    const double rmw = cached ? rates.cached.rmw_per_s : std::max(t.rmw_per_s, p.rmw_per_s);
+    const AccessRate& w = cached ? rates.cached : rates.warm;
+    fwd_s += lines[l] / read;
+    bwd_s += lines[l] / rmw;
+    fwd_warm_s += lines[l] / w.read_per_s;
+    bwd_warm_s += lines[l] / w.rmw_per_s;
+    total_lines += lines[l];
+    per_level.push_back({{"table_bytes", bytes}, {"hashed", L.hashed}, {"lines_per_sample", lines[l]}});
+  }
+  report["hash_grid_roofline"] = {{"lines_per_sample", total_lines},
+                                  {"levels", per_level},
+                                  {"forward_bound_samples_per_s", 1 / fwd_s},
+                                  {"backward_params_bound_samples_per_s", 1 / bwd_s},
+                                  {"forward_backward_bound_samples_per_s", 1 / (fwd_s + bwd_s)},
+                                  {"forward_backward_fraction_of_bound", (fwd_s + bwd_s) / both * a.batch},
+                                  {"forward_backward_bound_if_tables_stayed_cached_samples_per_s",
+                                   1 / (fwd_warm_s + bwd_warm_s)}};
   report["hash_grid"] = {{"config", enc.hyperparams()},
                          {"n_params", enc.n_params()},
                          {"batch", a.batch},
@@ -278,9 +402,10 @@ int main(int argc, char** argv) {
     else if (s == "--batch") a.batch = static_cast<std::uint32_t>(std::stoul(next()));
     else if (s == "--reps") a.reps = static_cast<std::uint32_t>(std::stoul(next()));
     else if (s == "--out") a.out = next();
+    else if (s == "--hash-grid-only") a.hash_grid_only = true;
     else if (s == "--log2-hashmap-size") a.log2_hashmap_size = static_cast<std::uint32_t>(std::stoul(next()));
     else {
-      std::cerr << "usage: bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--out FILE]\n";
+      std::cerr << "usage: bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--hash-grid-only] [--out FILE]\n";
       return 2;
     }
   }
@@ -293,8 +418,16 @@ int main(int argc, char** argv) {
     const Device device = Device::select(a.device);
     Json report = {{"bench", "encodings"}, {"device", device.info().description()}, {"smoke", a.smoke},
                    {"checks", Json::array()}};
-    bool ok = bench_hash_grid(device, a, report);
-    ok &= bench_frequency_and_sh(device, a, report);
+    bool ok = true;
+    Rates rates;
+    const std::uint64_t table = 8ull << (a.smoke ? 14 : a.log2_hashmap_size);  // a hashed level's, 2 features
+    rates.cached = random_access_rate(device, a.smoke ? 64 << 10 : 256 << 10, 1, false, a, report, ok);
+    rates.warm = random_access_rate(device, table, 1, false, a, report, ok);
+    rates.in_turn = random_access_rate(device, table, 16, false, a, report, ok);
+    rates.in_turn_prefetched = random_access_rate(device, table, 16, true, a, report, ok);
+    if (!a.smoke) random_access_rate(device, 64 << 20, 1, false, a, report, ok);  // every level's table at once
+    ok &= bench_hash_grid(device, a, rates, report);
+    if (!a.hash_grid_only) ok &= bench_frequency_and_sh(device, a, report);
     report["ok"] = ok;
     const std::string text = report.dump(2);
     if (a.out.empty()) std::cout << text << "\n";

@@ -111,6 +111,9 @@ Defines HashGridEncoding::defines(const Device& device) const {
   d["LEVEL_OFFSET"] = initializer(m_levels, [](const Level& l) { return std::to_string(l.offset) + "u"; });
   d["LEVEL_HASHED"] = initializer(m_levels, [](const Level& l) { return std::string(l.hashed ? "1u" : "0u"); });
   d["N_RANGES"] = std::to_string(gradient_ranges(device));
+  // Software prefetch (kernels/enc_hashgrid.cl): on CPUs, whose out-of-order window alone overlaps too few of
+  // the table misses.
+  d["PREFETCH"] = device.info().type == "cpu" ? "1" : "0";
   return d;
 }
 
@@ -134,13 +137,13 @@ void HashGridEncoding::backward(const Device& device, ConstParamSlice params, co
   const Defines defs = defines(device);
   if (grads.buffer) {
     detail::check_slice("HashGrid::backward", "gradient", grads, m_n_params);
-    if (!accumulate) grads.buffer->fill(0.0f, grads.offset, m_n_params);
     Kernel k = device.kernel("enc_hashgrid.cl", "hashgrid_backward_params", defs);
     const std::size_t items = m_levels.size() * static_cast<std::size_t>(gradient_ranges(device));
     // One (level, range) per work-group on a CPU, so that the levels spread over the cores.
     const std::size_t local = device.info().type == "cpu" ? 1 : detail::local_size(k);
     k.args(detail::n_tiles(input), input.batch(), input.data(), input.cols(), in_col, d_output.data(),
-           d_output.cols(), out_col, *grads.buffer, static_cast<std::uint32_t>(grads.offset))
+           d_output.cols(), out_col, *grads.buffer, static_cast<std::uint32_t>(grads.offset),
+           static_cast<std::uint32_t>(accumulate ? 0 : 1))
         .launch(items, local);
   }
   if (d_input) {
