@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <random>
@@ -305,6 +306,37 @@ TEST(Method, InferenceVisibilityCanMarchTheDensityGrid) {
   EXPECT_GT(diff, 0.0);
   march.visibility = "sometimes";
   EXPECT_THROW(method::render_image(model, sc.camera, sc.light, march), InvalidArgument);
+}
+
+// initial_density sets the σ head's bias: the median σ of the freshly initialised density grid follows it
+// (the hidden layers' random output spreads σ around softplus(bias), so the median, not every voxel).
+TEST(Method, InitialDensitySetsTheStartingSigma) {
+  const Device dev = test::test_device();
+  const auto median_sigma = [&](double sigma0) {
+    Json cfg = tiny_model();
+    if (sigma0 > 0) cfg["initial_density"] = sigma0;
+    method::Ours model(dev, cfg);
+    model.initialize(3);
+    model.refresh_density_grid();
+    std::vector<float> s = model.density_grid().sigma.read();
+    std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
+    return double(s[s.size() / 2]);
+  };
+  EXPECT_NEAR(median_sigma(0), std::log(2.0), 0.35);  // the default: a zero bias
+  EXPECT_NEAR(median_sigma(10), 10.0, 1.0);
+  EXPECT_NEAR(median_sigma(40), 40.0, 1.0);
+  EXPECT_NEAR(median_sigma(0.05), 0.05, 0.05);
+  Json bad = tiny_model();
+  bad["initial_density"] = 0;
+  EXPECT_THROW(method::Ours(dev, bad), ConfigError);
+  bad["initial_density"] = 5;
+  bad["property"]["network"]["bias"] = false;
+  try {
+    method::Ours m(dev, bad);
+    FAIL() << "initial_density accepted without biases";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("/model/initial_density"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Method, ConfigErrorsNameTheKey) {

@@ -2,12 +2,14 @@
 // isolated backward passes (kernels/method.cl holds the glue kernels).
 #include <relit/cl/program.hpp>
 #include <relit/method/ours.hpp>
+#include <relit/nn/fully_fused_mlp.hpp>
 #include <relit/nn/columns.hpp>
 #include <relit/nn/registry.hpp>
 
 #include "common.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace relit::method {
 
@@ -115,6 +117,10 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     s.n_features = 1;  // no SH head: one unused feature column keeps the property net's heads alike
     s.light_conditioned = false;
   }
+  s.initial_density = r.number("initial_density", 0.6931472f, 1e-3f, 1e3f,
+                                "σ everywhere at initialisation (the σ head's bias is softplus⁻¹ of it; the default, "
+                                "ln 2, is a zero bias). A dense start keeps the interiors that camera rays never "
+                                "reach opaque, so shadows do not leak");
   {
     config::Reader gr(r.sub("density_grid", Json::object(), "object", "the cached density grid of visibility targets"),
                       r.pointer("density_grid"), "density_grid");
@@ -175,6 +181,10 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     auto e = nn::create_encoding(enc, 3, ptr + "/encoding");
     auto n = nn::create_network(net, e->n_output_dims(), prop_heads() + s.n_features, ptr + "/network");
     m_property = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
+    const auto* mlp = dynamic_cast<const nn::FullyFusedMLP*>(&m_property->network());
+    if (s.initial_density != OursSettings{}.initial_density && !(mlp && mlp->has_bias()))
+      throw ConfigError(r.pointer("initial_density"), "needs a property network with biases (" + ptr +
+                                                     "/network: FullyFusedMLP with \"bias\": true)");
     Json res = m_property->hyperparams();
     res["network"] = strip_heads(res["network"]);
     r.set_resolved("property", res);
@@ -272,6 +282,7 @@ const render::VolumeRenderer& Ours::renderer_for(std::uint32_t n_samples, std::u
 void Ours::initialize(std::uint64_t seed) {
   std::vector<float> theta(n_params()), psi(n_vis_params());
   m_property->initialize_params(theta.data(), seed);
+  set_initial_density(theta.data());
   if (m_indirect) m_indirect->initialize_params(theta.data() + m_property->n_params(), seed + 1000);
   if (m_environment)
     m_environment->initialize_params(theta.data() + m_property->n_params() + m_indirect->n_params(), seed + 3000);
@@ -279,6 +290,19 @@ void Ours::initialize(std::uint64_t seed) {
   m_visibility->initialize_params(psi.data(), seed + 2000);
   m_params.write(theta);
   m_vis_params.write(psi);
+}
+
+void Ours::set_initial_density(float* theta) const {
+  const float sigma0 = m_settings.initial_density;
+  if (sigma0 == OursSettings{}.initial_density) return;  // a zero bias, as the network's own initialisation
+  const auto* mlp = dynamic_cast<const nn::FullyFusedMLP*>(&m_property->network());
+  if (!mlp || !mlp->has_bias()) return;  // refused when the config was read
+  // softplus⁻¹(σ0) = log(expm1(σ0)), written to stay finite for large σ0.
+  const double bias = sigma0 > 20.0f ? double(sigma0) + std::log(-std::expm1(-double(sigma0)))
+                                     : std::log(std::expm1(double(sigma0)));
+  const std::uint32_t out_layer = mlp->n_hidden_layers();
+  theta[m_property->encoding().n_params() + mlp->layer_offset(out_layer) + mlp->layer_inputs(out_layer)] =
+      static_cast<float>(bias);  // row 0 (σ) of the output layer, its bias column
 }
 
 void Ours::prepare_branch(OursPass& pass, const Branch& branch, std::uint32_t n_rays, std::uint32_t n_env) const {

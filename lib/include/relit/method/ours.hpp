@@ -48,6 +48,7 @@ struct OursSettings {
   float intensity_reference = 1000.0f;    ///< I_ref: the SH head predicts indirect light per I / I_ref
   float light_position_scale = 0.125f;    ///< the SH head sees the light position times this
   bool light_conditioned = true;          ///< false: c = c(x), the position-only ablation
+  float initial_density = 0.6931472f;     ///< σ of the property net at initialisation (softplus of its σ bias)
   std::uint32_t grid_resolution = 64;     ///< density grid for visibility targets (per axis)
   std::uint32_t grid_refresh = 16;        ///< refresh the grid every this many training steps
   std::uint32_t march_steps = 64;         ///< midpoint steps of the visibility-target march
@@ -91,6 +92,8 @@ class Ours : public Model {
 
   /// θ: [property net | SH head | environment head]; ψ: the visibility net.
   void initialize(std::uint64_t seed) override;
+  /// Sets the σ head's bias in θ so that σ starts near OursSettings::initial_density.
+  void set_initial_density(float* theta) const;
 
   const nn::NetworkWithInputEncoding& property_network() const { return *m_property; }
   const nn::NetworkWithInputEncoding& indirect_network() const { return *m_indirect; }
