@@ -105,10 +105,11 @@ void check_gradients(method::Ours& model, const render::EnvironmentSamples* env,
 
 TEST(Method, RenderGradientMatchesFiniteDifferencesEndToEnd) {
   const Device dev = test::test_device();
-  for (const std::string sh : {"none", "1", "1 closed form"}) {
+  for (const std::string sh : {"none", "1", "1 closed form", "1 visibility input"}) {
     SCOPED_TRACE("sh " + sh);
     Json config = tiny_model(sh.substr(0, sh.find(' ')));
     config["renderer"]["closed_form_indirect"] = sh.find("closed") != std::string::npos;
+    if (sh.find("visibility") != std::string::npos) config["indirect"]["visibility_input"] = true;
     method::Ours model(dev, config);
     model.initialize(11);
     check_gradients(model, nullptr);
@@ -130,7 +131,11 @@ TEST(Method, EnvironmentRenderGradientMatchesFiniteDifferences) {
 
 TEST(Method, GradientsAreIsolatedBothWays) {
   const Device dev = test::test_device();
-  method::Ours model(dev, tiny_model());
+  for (const bool visibility_input : {false, true}) {
+  SCOPED_TRACE(visibility_input ? "SH head sees V" : "SH head without V");
+  Json config = tiny_model();
+  config["indirect"]["visibility_input"] = visibility_input;
+  method::Ours model(dev, config);
   Scene1 sc;
   const std::uint32_t n = 16;
   Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
@@ -155,6 +160,43 @@ TEST(Method, GradientsAreIsolatedBothWays) {
   for (float g : model.vis_grads().read()) norm += std::fabs(g);
   EXPECT_GT(norm, 0.0);
   EXPECT_TRUE(std::isfinite(value.read()[0]));
+  }
+}
+
+// With indirect.visibility_input the SH head's last input column is V toward the light, the network's or the
+// march's, and the resolved config keeps the key.
+TEST(Method, IndirectHeadCanSeeTheVisibility) {
+  const Device dev = test::test_device();
+  Json config = tiny_model();
+  config["indirect"]["visibility_input"] = true;
+  method::Ours with(dev, config);
+  EXPECT_EQ(with.hyperparams()["indirect"]["visibility_input"], true);
+  EXPECT_EQ(with.indirect_network().n_input_dims(), with.settings().n_features + 4);
+  config["indirect"]["visibility_input"] = false;
+  method::Ours without(dev, config);
+  EXPECT_EQ(without.indirect_network().n_input_dims(), without.settings().n_features + 3);
+  with.initialize(2);
+  with.refresh_density_grid();
+  Scene1 sc;
+  const std::uint32_t n = 16;
+  Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
+  render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
+  render::IndirectBasis basis(dev, 8, 1);
+  basis.draw(1, 0);
+  for (const bool march : {false, true}) {
+    method::OursPass pass;
+    with.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis(), march);
+    const auto vis = pass.vis.download_row_major(), in = pass.light_in.download_row_major();
+    const std::uint32_t cols = pass.light_in.cols(), vcols = pass.vis.cols();
+    double spread = 0;
+    for (std::uint32_t i = 0; i < pass.light_in.batch(); ++i) {
+      ASSERT_EQ(in[std::size_t(i) * cols + cols - 1], vis[std::size_t(i) * vcols]) << "sample " << i;
+      spread += std::fabs(vis[std::size_t(i) * vcols] - vis[0]);
+    }
+    EXPECT_GT(spread, 0.0);  // not a constant column
+  }
+  config["indirect"]["visibility_input"] = "yes";
+  EXPECT_THROW(method::Ours(dev, config), ConfigError);
 }
 
 TEST(Method, EnvironmentVisibilityColumnsAndTargetsComeFromTheirDirections) {

@@ -55,6 +55,11 @@ struct SubConfig {
   }
 };
 
+// Columns of the SH head's input: the features, the light position, V toward the light.
+std::uint32_t indirect_input_cols(const OursSettings& s) {
+  return s.n_features + (s.light_conditioned ? 3 : 0) + (s.indirect_visibility_input ? 1 : 0);
+}
+
 void check_pass(const OursPass& pass, const char* what) {
   if (pass.n_rays == 0) throw InvalidArgument(std::string("Ours::") + what + ": the pass holds no forward results");
 }
@@ -189,23 +194,33 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     res["network"] = strip_heads(res["network"]);
     r.set_resolved("property", res);
   }
-  // Indirect SH head: [features, light position] → 3 n_sh coefficients per unit intensity.
+  // Indirect SH head: [features, light position (, V toward the light)] → 3 n_sh coefficients per unit intensity.
   if (n_sh > 0) {
-    SubConfig sub(r, "indirect", default_indirect(), "indirect SH head h_θ: {light_encoding, network}", docs);
+    SubConfig sub(r, "indirect", default_indirect(), "indirect SH head h_θ: {light_encoding, network, visibility_input}", docs);
     const Json lenc = sub.component("light_encoding", default_indirect(), "encoding of the light position (3 dims)");
     Json net = sub.component("network", default_indirect(), "the head's MLP (output activation: none)");
+    s.indirect_visibility_input = sub.reader.boolean(
+        "visibility_input", false,
+        "the head also sees V(x, ω_l), the visibility toward the point light (the network's, or the march's when "
+        "marching; no gradient reaches ψ): whether x lies in the light's shadow, which the features and the "
+        "light position alone encode only through the head's own capacity");
     sub.finish();
     const std::string ptr = r.pointer("indirect");
     net = with_heads(net, ptr + "/network", Json::array({{{"n_dims", 3 * n_sh}, {"activation", "None"}}}));
     Json nested = Json::array({{{"type", "Identity"}, {"n_dims_to_encode", s.n_features}}});
-    if (s.light_conditioned) nested.push_back(lenc);
-    auto e = nn::create_encoding({{"type", "Composite"}, {"nested", nested}},
-                                 s.n_features + (s.light_conditioned ? 3 : 0), ptr + "/light_encoding");
+    if (s.light_conditioned) {
+      Json l = lenc;
+      l["n_dims_to_encode"] = 3;
+      nested.push_back(l);
+    }
+    if (s.indirect_visibility_input) nested.push_back({{"type", "Identity"}, {"n_dims_to_encode", 1}});
+    auto e = nn::create_encoding({{"type", "Composite"}, {"nested", nested}}, indirect_input_cols(s),
+                                 ptr + "/light_encoding");
     auto n = nn::create_network(net, e->n_output_dims(), 3 * n_sh, ptr + "/network");
     m_indirect = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
-    Json res{{"light_encoding", m_indirect->encoding().hyperparams()["nested"].back()},
-             {"network", strip_heads(m_indirect->network().hyperparams())}};
-    if (!s.light_conditioned) res["light_encoding"] = lenc;
+    Json res{{"light_encoding", s.light_conditioned ? m_indirect->encoding().hyperparams()["nested"][1] : lenc},
+             {"network", strip_heads(m_indirect->network().hyperparams())},
+             {"visibility_input", s.indirect_visibility_input}};
     res["light_encoding"].erase("n_dims_to_encode");
     r.set_resolved("indirect", res);
   } else if (m_variant == Variant::ours) {
@@ -309,7 +324,7 @@ void Ours::prepare_branch(OursPass& pass, const Branch& branch, std::uint32_t n_
   const std::uint32_t n = n_rays * branch.n_samples;
   const std::uint32_t n_sh = m_renderer->n_sh();
   const std::uint32_t prop_out = prop_heads() + m_settings.n_features;
-  const std::uint32_t light_cols = m_settings.n_features + (m_settings.light_conditioned ? 3 : 0);
+  const std::uint32_t light_cols = indirect_input_cols(m_settings);
   auto ensure = [&](Buffer<float>& b, std::size_t count) { detail::ensure_size(b, m_device, count); };
   auto matrix = [&](nn::BatchMatrix& m, std::uint32_t cols) { nn::ensure_rows(m, m_device, n, cols); };
   ensure(pass.t, n);
@@ -417,6 +432,8 @@ void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& r
   mark(timer, "visibility net forward");
   if (n_sh > 0) {
     nn::copy_columns(m_device, pass.props_raw, prop_heads(), pass.light_in, 0, m_settings.n_features);
+    if (m_settings.indirect_visibility_input)  // an input only: its gradient column is dropped (ψ stays isolated)
+      nn::copy_columns(m_device, pass.vis, 0, pass.light_in, indirect_input_cols(m_settings) - 1, 1);
     if (training) m_indirect->forward(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
     else m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,

@@ -48,6 +48,7 @@ struct OursSettings {
   float intensity_reference = 1000.0f;    ///< I_ref: the SH head predicts indirect light per I / I_ref
   float light_position_scale = 0.125f;    ///< the SH head sees the light position times this
   bool light_conditioned = true;          ///< false: c = c(x), the position-only ablation
+  bool indirect_visibility_input = false; ///< the SH head also sees V(x, ω_l) (indirect.visibility_input)
   float initial_density = 0.6931472f;     ///< σ of the property net at initialisation (softplus of its σ bias)
   std::uint32_t grid_resolution = 64;     ///< density grid for visibility targets (per axis)
   std::uint32_t grid_refresh = 16;        ///< refresh the grid every this many training steps
