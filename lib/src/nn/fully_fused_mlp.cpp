@@ -20,10 +20,6 @@ Activation activation_from_name(const std::string& name) {
   throw InvalidArgument("unknown activation '" + name + "'");
 }
 
-// Register block sizes of the kernels (see kernels/mlp.cl); measured on AVX2 (docs/networks.md).
-constexpr std::uint32_t kForwardBlock = 4;
-constexpr std::uint32_t kWeightGradRows = 4, kWeightGradCols = 3;
-constexpr std::uint32_t kWeightGradRegion = 4 * kWeightGradRows;  // rows of dW per work-item (DW_ROWS)
 
 // Weight-gradient partials: the batch is cut into a few chunks per compute unit (load balance; the partial
 // buffer is chunks x parameters, kept under kMaxPartialFloats), each walked in sub-chunks whose input rows
@@ -76,8 +72,60 @@ double apply_activation(Activation a, double z) {
   return z;
 }
 
+bool FullyFusedMLP::Blocking::operator==(const Blocking& o) const {
+  return forward_tiles == o.forward_tiles && forward_rows == o.forward_rows && backward_rows == o.backward_rows &&
+         dw_vector == o.dw_vector && dw_rows == o.dw_rows && dw_cols == o.dw_cols && dw_region == o.dw_region;
+}
+
+std::string FullyFusedMLP::Blocking::str() const {
+  return "T" + std::to_string(forward_tiles) + " R" + std::to_string(forward_rows) + " B" +
+         std::to_string(backward_rows) + " V" + std::to_string(dw_vector) + " " + std::to_string(dw_rows) + "x" +
+         std::to_string(dw_cols) + "/" + std::to_string(dw_region);
+}
+
+// Register blocks (kernels/mlp.cl; measurements in docs/networks.md). A work-item's accumulators must fit the
+// vector registers: NR x FWD_T float16 for the forward/backward blocks, DW_RJ x DW_RK vectors for dW.
+//  - AVX2 CPUs and GPUs: one tile per work-item, 4 outputs per block (a float16 is two ymm registers on
+//    AVX2: 8 accumulators of 16), float8 dW accumulators in 4 x 3 blocks.
+//  - AVX-512 CPUs (16-float native vectors, 32 zmm registers): a float16 is one register and two loads per
+//    cycle feed two FMAs, so a block must reuse each load: two tiles per work-item (every weight broadcast
+//    feeds two FMAs) and 8 outputs per block (every activation load feeds eight).
+FullyFusedMLP::Blocking FullyFusedMLP::default_blocking(const DeviceInfo& info) {
+  Blocking b;
+  if (info.type == "cpu" && info.preferred_vector_width_float >= 16) {
+    b.forward_tiles = 2;
+    b.forward_rows = 8;
+    b.backward_rows = 8;
+  }
+  return b;
+}
+
+void FullyFusedMLP::set_blocking(std::optional<Blocking> blocking) {
+  if (blocking) {
+    const Blocking& b = *blocking;
+    auto check = [](bool ok, const std::string& what) {
+      if (!ok) throw InvalidArgument("FullyFusedMLP::set_blocking: " + what);
+    };
+    check(b.forward_tiles >= 1 && b.forward_tiles <= 4, "forward_tiles must be in [1, 4]");
+    check(b.forward_rows >= 1 && b.forward_rows <= 16, "forward_rows must be in [1, 16]");
+    check(b.backward_rows >= 1 && b.backward_rows <= 16, "backward_rows must be in [1, 16]");
+    check(b.dw_vector == 8 || b.dw_vector == 16, "dw_vector must be 8 or 16");
+    check(b.dw_rows >= 1 && b.dw_rows <= 8 && b.dw_cols >= 1 && b.dw_cols <= 8, "dw_rows, dw_cols must be in [1, 8]");
+    check(b.dw_region >= b.dw_rows && b.dw_region % b.dw_rows == 0, "dw_region must be a multiple of dw_rows");
+  }
+  std::lock_guard<std::mutex> lock(m_mutex);
+  m_blocking = blocking;
+  m_kernels.clear();
+}
+
+FullyFusedMLP::Blocking FullyFusedMLP::blocking(const Device& device) const {
+  if (m_blocking) return *m_blocking;
+  return default_blocking(device.info());
+}
+
 struct FullyFusedMLP::Kernels {
   Device device;
+  Blocking blocking;
   Kernel forward, backward, weight_grad, reduce;
   std::size_t local_forward = 0, local_backward = 0, local_weight_grad = 0, local_reduce = 0;
 };
@@ -179,6 +227,7 @@ void FullyFusedMLP::initialize_params(float* out, std::uint64_t seed) const {
 }
 
 const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const {
+  const Blocking b = blocking(device);
   std::lock_guard<std::mutex> lock(m_mutex);
   for (const auto& k : m_kernels)
     if (k->device == device) return *k;
@@ -196,11 +245,14 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
       {"SKIP_MASK", std::to_string(skip_mask) + "u"}, {"TOP_SKIP", std::to_string(top_skip)},
       {"HIDDEN_ACT", std::to_string(static_cast<int>(m_hidden_activation))},
       {"OUT_ACTS", acts},                         {"BIAS", m_bias ? "1" : "0"},
-      {"FWD_R", std::to_string(kForwardBlock)},   {"DW_RJ", std::to_string(kWeightGradRows)},
-      {"DW_RK", std::to_string(kWeightGradCols)}, {"DW_ROWS", std::to_string(kWeightGradRegion)}};
+      {"FWD_T", std::to_string(b.forward_tiles)}, {"FWD_R", std::to_string(b.forward_rows)},
+      {"BWD_R", std::to_string(b.backward_rows)}, {"DW_VEC", std::to_string(b.dw_vector)},
+      {"DW_RJ", std::to_string(b.dw_rows)},       {"DW_RK", std::to_string(b.dw_cols)},
+      {"DW_ROWS", std::to_string(b.dw_region)}};
   const Program program = device.program("mlp.cl", defines);
   auto k = std::make_unique<Kernels>();
   k->device = device;
+  k->blocking = b;
   k->forward = program.kernel("mlp_forward");
   k->backward = program.kernel("mlp_backward");
   k->weight_grad = program.kernel("mlp_weight_grad_partial");
@@ -244,7 +296,7 @@ void FullyFusedMLP::launch_forward(const Device& device, ConstParamSlice params,
   Kernel kernel = k.forward;
   kernel.args(n_tiles, act_padded, *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(),
               output.data(), act ? *act : output.data(), static_cast<std::uint32_t>(act ? 1 : 0));
-  kernel.launch(n_tiles, k.local_forward);
+  kernel.launch((n_tiles + k.blocking.forward_tiles - 1) / k.blocking.forward_tiles, k.local_forward);
 }
 
 void FullyFusedMLP::inference(const Device& device, ConstParamSlice params, const BatchMatrix& input,
@@ -320,14 +372,14 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
   bk.args(n_tiles, ws->padded, batch, *params.buffer, static_cast<std::uint32_t>(params.offset), output.data(),
           d_output.data(), ws->act, ws->dz, d_input ? d_input->data() : ws->dz,
           static_cast<std::uint32_t>(d_input ? 1 : 0));
-  bk.launch(n_tiles, k.local_backward);
+  bk.launch((n_tiles + k.blocking.forward_tiles - 1) / k.blocking.forward_tiles, k.local_backward);
 
   // 2. Per-chunk partial weight gradients, layer by layer, into one [chunk][param] buffer.
   Kernel wk = k.weight_grad;
   for (std::uint32_t l = 0; l <= m_n_hidden; ++l) {
     const std::uint32_t n_out = layer_outputs(l);
     const std::uint32_t a_n = l == 0 ? 0 : m_width;
-    const std::uint32_t regions = (n_out + kWeightGradRegion - 1) / kWeightGradRegion;
+    const std::uint32_t regions = (n_out + k.blocking.dw_region - 1) / k.blocking.dw_region;
     const std::uint32_t x_row = l == 0 || has_skip(l) ? 0 : m_n_input;  // x rows then the ones row
     const std::uint32_t x_n = (l == 0 || has_skip(l) ? m_n_input : 0) + (m_bias ? 1 : 0);
     wk.args(plan.n_samples, plan.chunk_len, plan.n_chunks, plan.sub, ws->padded, ws->dz, l * m_width, n_out,
