@@ -3,7 +3,7 @@
 // (OpenMP). Every variant is verified against a double-precision reference before it is timed.
 //
 //   bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants fused,eigen,clblast]
-//   bench_mlp --blockings "T,R,B,V,RJ,RK,ROWS;..." [--variants w64,w256] [--reps N]   (tuning: fused only)
+//   bench_mlp --blockings "T,R,B,V,RJ,RK,ROWS[,F[,G]];..." [--variants w64,w256] [--reps N]   (tuning: fused only)
 //
 // FLOPs: 2 per multiply-add; forward = 2 * sum(in * out) per sample; training step = 3 x forward
 // (forward + dL/dinput + dL/dweights). Timings are medians over --reps runs, each ended by clFinish.
@@ -430,7 +430,7 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
 
 
 // ------------------------------------------------------------------------------------------------------
-// Tuning mode (--blockings "T,R,B,V,RJ,RK,ROWS;..."): the fused MLP with each register blocking (see
+// Tuning mode (--blockings "T,R,B,V,RJ,RK,ROWS[,F[,G]];..."): the fused MLP with each register blocking (see
 // FullyFusedMLP::Blocking), verified, then timed round-robin (one forward and one training step of every
 // blocking per round) so that a loaded machine slows them all alike; medians over --reps rounds.
 // ------------------------------------------------------------------------------------------------------
@@ -442,10 +442,11 @@ std::vector<FullyFusedMLP::Blocking> parse_blockings(const std::string& list) {
     const std::string item = list.substr(pos, end - pos);
     pos = end + 1;
     if (item.empty()) continue;
-    unsigned v[7];
-    if (std::sscanf(item.c_str(), "%u,%u,%u,%u,%u,%u,%u", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6]) != 7)
-      throw InvalidArgument("--blockings: '" + item + "' is not T,R,B,V,RJ,RK,ROWS");
-    out.push_back({v[0], v[1], v[2], v[3], v[4], v[5], v[6]});
+    unsigned v[9] = {0, 0, 0, 0, 0, 0, 0, 0, 8};
+    const int n = std::sscanf(item.c_str(), "%u,%u,%u,%u,%u,%u,%u,%u,%u", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6],
+                              &v[7], &v[8]);
+    if (n < 7) throw InvalidArgument("--blockings: '" + item + "' is not T,R,B,V,RJ,RK,ROWS[,F[,G]]");
+    out.push_back({v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]});
   }
   return out;
 }
@@ -462,7 +463,15 @@ void tune_net(const Device& device, const NetSpec& spec, const Options& o, doubl
   const auto& net0 = dynamic_cast<const FullyFusedMLP&>(*nets[0]);
   std::vector<float> params(net0.n_params());
   net0.initialize_params(params.data(), 1);
-  const std::uint32_t n = spec.batch, nv = std::min<std::uint32_t>(n, 1000);
+  {  // non-zero biases, as bench_net
+    auto r = random_vector(params.size(), 2, -0.1f, 0.1f);
+    for (std::uint32_t l = 0; l <= net0.n_hidden_layers(); ++l)
+      for (std::uint32_t j = 0; j < net0.layer_outputs(l); ++j) {
+        const std::size_t i = net0.layer_offset(l) + std::size_t(j) * (net0.layer_inputs(l) + 1) + net0.layer_inputs(l);
+        params[i] = r[i];
+      }
+  }
+  const std::uint32_t n = spec.batch, nv = std::min<std::uint32_t>(n, 1024);
   const auto xh = random_vector(std::size_t(n) * spec.n_in, 3);
   const auto dyh = random_vector(std::size_t(n) * spec.n_out, 4, -1e-3f, 1e-3f);
   reference::MlpReference ref(net0, params);

@@ -59,6 +59,9 @@
 #ifndef DW_VEC
 #define DW_VEC 8      // samples per accumulator of the weight-gradient kernel: 8 or 16
 #endif
+#ifndef TRAIN_G
+#define TRAIN_G (4 * FWD_T)  // tiles per group of the fused training kernel, a multiple of FWD_T
+#endif
 #ifndef DW_RJ
 #define DW_RJ 4
 #endif
@@ -165,6 +168,10 @@ inline float16 hidden_act(float16 z) {
   _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_)                               \
       tile[u_] = min((item) * FWD_T + u_, (size_t)(n_tiles) - 1);
 
+// Private and scratch arrays hold feature f of tile u at [f * HS + u]: HS = FWD_T in the forward and backward
+// kernels, TRAIN_G in the fused training kernel (which runs the blocks on FWD_T of its TRAIN_G tiles at a time).
+#define HS FWD_T
+
 // ---------------------------------------------------------------------------------------------------------
 // Forward. One work-item = FWD_T tiles of 16 samples; all layers in registers/private memory (per feature k
 // the FWD_T tiles' float16 values are adjacent: h[k * FWD_T + u]). With save != 0 the training workspace
@@ -174,7 +181,7 @@ inline float16 hidden_act(float16 z) {
 // ---------------------------------------------------------------------------------------------------------
 
 #define SRC_X(k, u) vload16(0, xt[u] + (k) * TILE)
-#define SRC_H(k, u) hin[(k) * FWD_T + (u)]
+#define SRC_H(k, u) hin[(k) * HS + (u)]
 
 // One hidden layer block of NR outputs starting at j0.
 #define HIDDEN_BLOCK(NR, j0)                                                                   \
@@ -190,7 +197,7 @@ inline float16 hidden_act(float16 z) {
     _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
       _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                     \
         const float16 y = hidden_act(acc[r][u]);                                               \
-        hout[((j0) + r) * FWD_T + u] = y;                                                      \
+        hout[((j0) + r) * HS + u] = y;                                                         \
         if (save) vstore16(y, 0, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);           \
       }                                                                                        \
   }
@@ -261,7 +268,7 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 // zero gradients, so the weight gradients never see the padding rows whatever d_output holds there.
 // ---------------------------------------------------------------------------------------------------------
 
-#define SRC_G(j, u) gin[(j) * FWD_T + (u)]
+#define SRC_G(j, u) gin[(j) * HS + (u)]
 
 // NR inputs k0.. of dL/dh_(l-1) = W_l^T dZ_l, masked by the activation derivative of h_(l-1).
 #define BACK_HIDDEN_BLOCK(NR, k0)                                                              \
@@ -274,7 +281,7 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
         float16 g = acc[r][u];                                                                 \
         const size_t o_ = ((k0) + r) * (size_t)padded + tile[u] * TILE;                       \
         if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, vload16(0, at + o_) > 0.0f);  \
-        gout[((k0) + r) * FWD_T + u] = g;                                                      \
+        gout[((k0) + r) * HS + u] = g;                                                         \
         vstore16(g, 0, dzt + o_);                                                              \
       }                                                                                        \
   }
@@ -485,4 +492,188 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
       g[k] = accumulate ? g[k] + s : s;
     }
   }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Fused training step for small networks (CPUs): one work-item = one chunk of the batch, walked TRAIN_G tiles
+// at a time. Per group it recomputes the forward pass into its scratch rows, back-propagates dZ through the
+// layers (dL/dx on the way), and adds every layer's dZ x input products into float16 accumulators, one per
+// parameter (lanes = the samples' position in their tile). Outside its scratch, which stays in the core's L2
+// cache (the host picks this kernel only while the accumulators, 64 bytes per parameter, are small), nothing
+// but x, y, dy and dx is read or written; the separate kernels above write and re-read the saved activations
+// and every dZ, and on a CPU they are bound by that memory traffic. The forward and backward blocks run on
+// FWD_T tiles at a time; the weight-gradient blocks on all TRAIN_G tiles, so that each accumulator load and
+// store feeds TRAIN_G FMAs. At the end of its chunk the work-item writes the lane sums to its partial slot;
+// mlp_reduce_chunks adds the chunks in a fixed order (deterministic, no atomics).
+//
+// scratch (per work-item, scratch_stride floats apart, 64-byte aligned):
+//   acc   n_params float16           accumulator of parameter i (the parameters' layout)
+//   rows  N_ROWS x TRAIN_G float16   like `act`: x (N_IN), ones, h_0 .. h_(N_HIDDEN-1)
+//   g     2 x GMAX x TRAIN_G float16 dZ of the current layer and of the one below
+//   sink  N_IN x TILE floats         dL/dx of repeated tiles (past the chunk's end) goes here
+// ---------------------------------------------------------------------------------------------------------
+#undef HS
+#define HS TRAIN_G
+#define N_ROWS (ACT_H0 + N_HIDDEN * WIDTH)
+
+inline float sum16(float16 v) {
+  const float8 s8 = v.lo + v.hi;
+  const float4 s4 = s8.lo + s8.hi;
+  const float2 s2 = s4.lo + s4.hi;
+  return s2.x + s2.y;
+}
+
+// dL/dh_(l-1) for NR inputs k0..: W_l^T dZ_l masked by the ReLU of h_(l-1) (scratch rows), into gout.
+#define TRAIN_BACK_BLOCK(NR, k0)                                                               \
+  {                                                                                            \
+    float16 acc[NR][FWD_T];                                                                    \
+    INIT_ZERO(acc, NR)                                                                         \
+    ACCUM_T(acc, NR, SRC_G, nout, w, stride, k0)                                               \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
+      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                     \
+        float16 g = acc[r][u];                                                                 \
+        if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, hprev[((k0) + r) * HS + u] > 0.0f); \
+        gout[((k0) + r) * HS + u] = g;                                                         \
+      }                                                                                        \
+  }
+
+// The FWD_T tiles of sub-group s of the group starting at tile tb: tile indices (clamped to the chunk), x
+// and dL/dx pointers (the sink for tiles past the chunk's end).
+#define SUB_TILES(s)                                                                           \
+  size_t tile[FWD_T];                                                                          \
+  __global const float* xt[FWD_T];                                                             \
+  __global float* dxt[FWD_T];                                                                  \
+  _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                         \
+    const size_t t_ = tb + (s) * FWD_T + u;                                                    \
+    tile[u] = min(t_, t_end - 1);                                                              \
+    xt[u] = x + tile[u] * (size_t)(N_IN * TILE);                                               \
+    dxt[u] = t_ < t_end ? dx + tile[u] * (size_t)(N_IN * TILE) : sink;                         \
+  }
+
+__kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint chunk_tiles, const uint n_params,
+                              __global const float* restrict params, const uint param_offset,
+                              __global const float* restrict x, __global const float* restrict y,
+                              __global const float* restrict dy, __global float* restrict dx, const uint want_dx,
+                              __global float* restrict scratch, const uint scratch_stride,
+                              __global float* restrict partial, const uint partial_stride) {
+  const size_t c = get_global_id(0);
+  const size_t t_begin = c * chunk_tiles;
+  if (t_begin >= n_tiles) return;
+  const size_t t_end = min(t_begin + chunk_tiles, (size_t)n_tiles);
+  __global const float* p = params + param_offset;
+  __global float16* accv = (__global float16*)(scratch + c * scratch_stride);
+  __global float16* rows = accv + n_params;
+  __global float16* gbuf = rows + N_ROWS * TRAIN_G;
+  __global float* sink = (__global float*)(gbuf + 2 * GMAX * TRAIN_G);
+  const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  for (uint i = 0; i < n_params; ++i) accv[i] = (float16)0.0f;
+  for (uint u = 0; u < TRAIN_G; ++u) rows[N_IN * TRAIN_G + u] = (float16)1.0f;
+  const uint save = 0, padded = 0;  // the forward blocks keep their activations in the scratch only
+  __global float* st = 0;
+
+  for (size_t tb = t_begin; tb < t_end; tb += TRAIN_G) {
+    // Forward through the hidden layers (the output y is the caller's, from forward()).
+    for (uint sg = 0; sg < TRAIN_G / FWD_T; ++sg) {
+      SUB_TILES(sg)
+      for (uint k = 0; k < N_IN; ++k)
+#pragma unroll
+        for (uint u = 0; u < FWD_T; ++u) rows[k * HS + sg * FWD_T + u] = vload16(0, xt[u] + k * TILE);
+      for (uint l = 0; l < N_HIDDEN; ++l) {
+        const uint skip = (((uint)(SKIP_MASK)) >> l) & 1u;
+        const uint kin = LAYER_IN(l);
+        const uint stride = kin + BIAS;
+        __global const float* w = p + layer_offset(l);
+        __global const float16* hin = rows + (l == 0 ? 0 : ACT_H0 + (l - 1) * WIDTH) * HS + sg * FWD_T;
+        __global float16* hout = rows + (ACT_H0 + l * WIDTH) * HS + sg * FWD_T;
+        for (uint j0 = 0; j0 + FWD_R <= WIDTH; j0 += FWD_R) HIDDEN_BLOCK(FWD_R, j0)
+#if WIDTH % FWD_R
+        HIDDEN_BLOCK(WIDTH % FWD_R, WIDTH - WIDTH % FWD_R)
+#endif
+      }
+    }
+
+    // dZ of the output layer; zero for samples past the batch and for tiles past the chunk's end.
+    {
+      __global float16* gout = gbuf + (N_HIDDEN & 1) * GMAX * HS;
+      for (uint u = 0; u < TRAIN_G; ++u) {
+        const size_t t_ = tb + u, tu = min(t_, t_end - 1);
+        const int16 valid = ((int16)((int)(tu * TILE)) + lane < (int16)((int)batch)) & (int16)(t_ < t_end ? -1 : 0);
+        __global const float* yt = y + tu * (size_t)(N_OUT * TILE);
+        __global const float* dyt = dy + tu * (size_t)(N_OUT * TILE);
+        for (uint j = 0; j < N_OUT; ++j) {
+          const float16 d = vload16(0, dyt + j * TILE) * act_grad(vload16(0, yt + j * TILE), k_out_act[j]);
+          gout[j * HS + u] = select((float16)0.0f, d, valid);
+        }
+      }
+    }
+
+    for (uint l = N_HIDDEN;; --l) {
+      const uint nout = LAYER_OUT(l);
+      const uint stride = LAYER_STRIDE(l);
+      const uint lskip = l > 0 && ((((uint)(SKIP_MASK)) >> l) & 1u);
+      __global const float* w = p + layer_offset(l);
+      // Input rows of layer l in the scratch: a_n activation rows from a_row, then from x_row (x and/or ones).
+      const uint a_row = l == 0 ? 0 : ACT_H0 + (l - 1) * WIDTH, a_n = l == 0 ? 0 : WIDTH;
+      const uint x_row = l == 0 || lskip ? 0 : N_IN;
+      {  // dW_l += dZ_l x input_l over the group's TRAIN_G tiles, DW_RJ x DW_RK blocks.
+        __global const float16* gin = gbuf + (l & 1) * GMAX * HS;
+        __global float16* acc_l = accv + layer_offset(l);
+        for (uint j0 = 0; j0 < nout; j0 += DW_RJ)
+          for (uint k0 = 0; k0 < stride; k0 += DW_RK) {
+            // Rows and columns past the end repeat the last one; their sums are not stored.
+            __global const float16* dp[DW_RJ];
+            __global const float16* ip[DW_RK];
+            float16 a[DW_RJ][DW_RK];
+#pragma unroll
+            for (uint i = 0; i < DW_RJ; ++i) dp[i] = gin + min(j0 + i, nout - 1) * HS;
+#pragma unroll
+            for (uint r = 0; r < DW_RK; ++r) {
+              const uint k = min(k0 + r, stride - 1);
+              ip[r] = rows + (k < a_n ? a_row + k : x_row + (k - a_n)) * HS;
+            }
+#pragma unroll
+            for (uint i = 0; i < DW_RJ; ++i)
+#pragma unroll
+              for (uint r = 0; r < DW_RK; ++r)
+                a[i][r] = acc_l[min(j0 + i, nout - 1) * stride + min(k0 + r, stride - 1)];
+            for (uint u = 0; u < TRAIN_G; ++u) {
+              float16 v[DW_RK];
+#pragma unroll
+              for (uint r = 0; r < DW_RK; ++r) v[r] = ip[r][u];
+#pragma unroll
+              for (uint i = 0; i < DW_RJ; ++i) {
+                const float16 d = dp[i][u];
+#pragma unroll
+                for (uint r = 0; r < DW_RK; ++r) a[i][r] = fma(d, v[r], a[i][r]);
+              }
+            }
+#pragma unroll
+            for (uint i = 0; i < DW_RJ; ++i)
+#pragma unroll
+              for (uint r = 0; r < DW_RK; ++r)
+                if (j0 + i < nout && k0 + r < stride) acc_l[(j0 + i) * stride + k0 + r] = a[i][r];
+          }
+      }
+      // dL/dx (layer 0 and skips) and dZ of layer l - 1, FWD_T tiles at a time.
+      for (uint sg = 0; sg < TRAIN_G / FWD_T; ++sg) {
+        SUB_TILES(sg)
+        __global const float16* gin = gbuf + (l & 1) * GMAX * HS + sg * FWD_T;
+        if (want_dx && (l == 0 || lskip)) {
+          const uint xcol = l == 0 ? 0 : WIDTH;
+          BACK_INPUT(l == TOP_SKIP)
+        }
+        if (l > 0) {
+          __global const float16* hprev = rows + a_row * HS + sg * FWD_T;
+          __global float16* gout = gbuf + ((l + 1) & 1) * GMAX * HS + sg * FWD_T;
+          for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) TRAIN_BACK_BLOCK(BWD_R, k0)
+#if WIDTH % BWD_R
+          TRAIN_BACK_BLOCK(WIDTH % BWD_R, WIDTH - WIDTH % BWD_R)
+#endif
+        }
+      }
+      if (l == 0) break;
+    }
+  }
+  __global float* out = partial + c * (size_t)partial_stride;
+  for (uint i = 0; i < n_params; ++i) out[i] = sum16(accv[i]);
 }

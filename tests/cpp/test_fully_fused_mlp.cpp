@@ -88,10 +88,17 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
   Reference ref(*net, params, offset);
 
   // The device's default register blocking, and others that every device must run alike: the AVX2/GPU and
-  // AVX-512 ones, and odd sizes (3 tiles per work-item, blocks that do not divide the widths).
+  // AVX-512 ones, and odd sizes (3 tiles per work-item, blocks that do not divide the widths), each with the
+  // separate backward kernels and with the fused training kernel (forced for every network size).
+  constexpr std::uint32_t kAlways = 1u << 30;
   std::vector<std::optional<FullyFusedMLP::Blocking>> blockings = {
-      std::nullopt, FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 16}, FullyFusedMLP::Blocking{2, 8, 8, 16, 4, 4, 16},
-      FullyFusedMLP::Blocking{3, 5, 3, 16, 3, 5, 9}};
+      std::nullopt,
+      FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 16, 0},
+      FullyFusedMLP::Blocking{2, 8, 8, 16, 4, 4, 16, 0},
+      FullyFusedMLP::Blocking{2, 8, 8, 16, 4, 4, 16, kAlways},
+      FullyFusedMLP::Blocking{3, 5, 3, 16, 3, 5, 9, 0, 6},
+      FullyFusedMLP::Blocking{3, 5, 3, 16, 3, 5, 9, kAlways, 3},
+      FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 16, kAlways, 5}};
   for (const auto& blocking : blockings)
   for (std::uint32_t batch : {1000u, 100u, 96u, 33u, 1u}) {
     net->set_blocking(blocking);
@@ -346,8 +353,9 @@ TEST(FullyFusedMLP, BlockingFollowsTheDevice) {
   avx512.preferred_vector_width_float = gpu.preferred_vector_width_float = 16;
   avx2.preferred_vector_width_float = 8;
   const auto b512 = FullyFusedMLP::default_blocking(avx512);
-  EXPECT_EQ(b512.forward_tiles, 2u);
-  EXPECT_EQ(b512.forward_rows, 8u);
+  EXPECT_GT(b512.forward_tiles, 1u);
+  EXPECT_EQ(b512.dw_vector, 16u);
+  EXPECT_GT(b512.fused_train_max_params, 0u);
   EXPECT_TRUE(FullyFusedMLP::default_blocking(avx2) == FullyFusedMLP::Blocking{});
   EXPECT_TRUE(FullyFusedMLP::default_blocking(gpu) == FullyFusedMLP::Blocking{});
 
@@ -355,7 +363,8 @@ TEST(FullyFusedMLP, BlockingFollowsTheDevice) {
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{0, 4, 4, 8, 4, 3, 16}), InvalidArgument);
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 12, 4, 3, 16}), InvalidArgument);
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 10}), InvalidArgument);
-  const FullyFusedMLP::Blocking odd{3, 5, 3, 16, 3, 5, 9};
+  const FullyFusedMLP::Blocking odd{3, 5, 3, 16, 3, 5, 9, 0, 9};
+  EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{2, 4, 4, 8, 4, 3, 16, 0, 5}), InvalidArgument);
   s.net->set_blocking(odd);
   EXPECT_TRUE(s.net->blocking(s.device) == odd);
   s.net->set_blocking(std::nullopt);

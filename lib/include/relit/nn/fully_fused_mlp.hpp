@@ -93,8 +93,14 @@ class FullyFusedMLP final : public Network {
     std::uint32_t dw_rows = 4;        ///< DW_RJ: dW rows per register block, 1..8
     std::uint32_t dw_cols = 3;        ///< DW_RK: dW columns per register block, 1..8
     std::uint32_t dw_region = 16;     ///< DW_ROWS: dW rows per work-item, a multiple of dw_rows
+    /// The fused training kernel (mlp_train_fused: one work-item per batch chunk, forward recomputed, float16
+    /// dW accumulators for every parameter in the work-item's scratch) runs backward() when the network has at
+    /// most this many parameters; 0: never (the separate backward and weight-gradient kernels). For CPUs,
+    /// where the accumulators (64 bytes per parameter) must stay in a core's cache.
+    std::uint32_t fused_train_max_params = 0;
+    std::uint32_t train_group = 8;  ///< TRAIN_G: tiles per group of the fused training kernel, a multiple of forward_tiles
     bool operator==(const Blocking& o) const;
-    std::string str() const;  ///< "T2 R8 B8 V16 4x4/16"
+    std::string str() const;  ///< "T2 R8 B8 V16 4x4/16 F16384 G8"
   };
   /// The blocking for a device: AVX-512 CPUs (16-float native vectors) get wider blocks than AVX2 CPUs and
   /// GPUs (docs/networks.md).
@@ -104,6 +110,8 @@ class FullyFusedMLP final : public Network {
   void set_blocking(std::optional<Blocking> blocking);
   /// The blocking the kernels use (or will use) on `device`.
   Blocking blocking(const Device& device) const;
+  /// Whether backward() runs the fused training kernel on `device` (see Blocking::fused_train_max_params).
+  bool fused_training(const Device& device) const;
 
  private:
   struct Kernels;
