@@ -107,7 +107,7 @@ FullyFusedMLP::Blocking FullyFusedMLP::default_blocking(const DeviceInfo& info) 
     b.dw_cols = 5;
     b.dw_region = 20;
     b.fused_train_max_params = 16384;  // 1 MiB of accumulators per work-item
-    b.train_group = 16;
+    b.train_group = 8;
   }
   return b;
 }
