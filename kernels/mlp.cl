@@ -1,18 +1,21 @@
 // mlp.cl: the fully fused MLP (FullyFusedMLP): forward, backward (dL/dinput and the per-layer dL/dZ), the
-// per-chunk weight-gradient partials and their fixed-order reduction. Deterministic, no atomics.
+// per-chunk weight-gradient partials and their fixed-order reduction, and a fused training step for small
+// networks on CPUs (mlp_train_fused, at the end). Deterministic, no atomics.
 //
 // Batch layout (BatchMatrix, see relit/nn/batch.hpp): 16 consecutive samples of one feature are contiguous,
 //
 //   tile t:  [f0: s0 .. s15][f1: s0 .. s15] ... [f(cols-1): s0 .. s15]      (16 floats = one float16)
 //
-// so one work-item owns one tile (16 samples) and every value it handles is a float16 whose lanes are
-// samples: PoCL maps it onto SIMD registers, a GPU treats it as 16 independent scalars.
+// so one work-item owns FWD_T tiles (16 samples each) and every value it handles is a float16 whose lanes
+// are samples: PoCL maps it onto SIMD registers, a GPU treats it as 16 independent scalars.
 //
-// Register blocking (forward, dL/dinput): FWD_R outputs at a time, all inputs k streamed through:
+// Register blocking (forward, dL/dinput): FWD_R outputs at a time for the FWD_T tiles, all inputs k
+// streamed through:
 //
-//        acc[r] (float16, lanes = samples)  +=  W[j0 + r][k] (broadcast)  *  in[k] (float16)
+//        acc[r][u] (float16, lanes = samples)  +=  W[j0 + r][k] (broadcast)  *  in[k] of tile u (float16)
 //
-//   per k: one float16 load, FWD_R broadcasts, FWD_R float16 FMAs: FWD_R independent accumulator chains.
+//   per k: FWD_T float16 loads, FWD_R broadcasts, FWD_R * FWD_T FMAs (independent accumulator chains).
+//   AVX2 and GPUs: FWD_T = 1, FWD_R = 4; AVX-512 (32 registers): FWD_T = 4, FWD_R = 6 (FullyFusedMLP::Blocking).
 //
 // Parameters (one layer after the other, layer l = 0 .. N_HIDDEN): a row-major [n_out_l][n_in_l + BIAS]
 // matrix whose last column is the bias when BIAS = 1. n_in_0 = N_IN; hidden layer l >= 1 has n_in = WIDTH,

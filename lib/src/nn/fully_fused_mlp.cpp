@@ -20,7 +20,6 @@ Activation activation_from_name(const std::string& name) {
   throw InvalidArgument("unknown activation '" + name + "'");
 }
 
-
 // Weight-gradient partials: the batch is cut into a few chunks per compute unit (load balance; the partial
 // buffer is chunks x parameters, kept under kMaxPartialFloats), each walked in sub-chunks whose input rows
 // (kSubChunkBytes) stay in a core's L2 + its share of L3 while every register block of the work-item's rows
@@ -133,8 +132,8 @@ void FullyFusedMLP::set_blocking(std::optional<Blocking> blocking) {
 }
 
 FullyFusedMLP::Blocking FullyFusedMLP::blocking(const Device& device) const {
-  if (m_blocking) return *m_blocking;
-  return default_blocking(device.info());
+  std::lock_guard<std::mutex> lock(m_mutex);
+  return m_blocking ? *m_blocking : default_blocking(device.info());
 }
 
 struct FullyFusedMLP::Kernels {
@@ -241,10 +240,10 @@ void FullyFusedMLP::initialize_params(float* out, std::uint64_t seed) const {
 }
 
 const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const {
-  const Blocking b = blocking(device);
   std::lock_guard<std::mutex> lock(m_mutex);
   for (const auto& k : m_kernels)
     if (k->device == device) return *k;
+  const Blocking b = m_blocking ? *m_blocking : default_blocking(device.info());
   std::uint32_t skip_mask = 0, top_skip = 0;
   for (std::uint32_t l : m_skip_layers) {
     skip_mask |= 1u << l;

@@ -13,7 +13,11 @@
 //
 // Parameter layout (see docs/networks.md): layer after layer, each a row-major [n_out][n_in + bias] matrix
 // (PyTorch's nn.Linear weight with the bias appended as the last column). Weight gradients are reduced in a
-// fixed order (no atomics): results are bit-for-bit reproducible on one device.
+// fixed order (no atomics): results are bit-for-bit reproducible on one device (for one Blocking).
+//
+// backward() must be given the input and output of the forward() call on the same workspace, unchanged: on
+// CPUs with AVX-512 small networks train with one fused kernel that recomputes the activations from the
+// input instead of saving them (docs/networks.md).
 #pragma once
 
 #include <relit/nn/module.hpp>
