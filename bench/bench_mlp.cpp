@@ -3,6 +3,7 @@
 // (OpenMP). Every variant is verified against a double-precision reference before it is timed.
 //
 //   bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants fused,eigen,clblast]
+//   bench_mlp --blockings "T,R,B,V,RJ,RK,ROWS[,F[,G]];..." [--variants w64,w256] [--reps N]   (tuning: fused only)
 //
 // FLOPs: 2 per multiply-add; forward = 2 * sum(in * out) per sample; training step = 3 x forward
 // (forward + dL/dinput + dL/dweights). Timings are medians over --reps runs, each ended by clFinish.
@@ -41,6 +42,7 @@ namespace {
 struct Options {
   bool smoke = false;
   std::string json, device, variants = "fused,eigen,clblast";
+  std::string blockings;  // --blockings: tuning mode
   int reps = 7;
   bool wants(const std::string& v) const { return ("," + variants + ",").find("," + v + ",") != std::string::npos; }
 };
@@ -426,6 +428,108 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
   return result;
 }
 
+
+// ------------------------------------------------------------------------------------------------------
+// Tuning mode (--blockings "T,R,B,V,RJ,RK,ROWS[,F[,G]];..."): the fused MLP with each register blocking (see
+// FullyFusedMLP::Blocking), verified, then timed round-robin (one forward and one training step of every
+// blocking per round) so that a loaded machine slows them all alike; medians over --reps rounds.
+// ------------------------------------------------------------------------------------------------------
+std::vector<FullyFusedMLP::Blocking> parse_blockings(const std::string& list) {
+  std::vector<FullyFusedMLP::Blocking> out;
+  std::size_t pos = 0;
+  while (pos <= list.size()) {
+    const std::size_t end = std::min(list.find(';', pos), list.size());
+    const std::string item = list.substr(pos, end - pos);
+    pos = end + 1;
+    if (item.empty()) continue;
+    unsigned v[9] = {0, 0, 0, 0, 0, 0, 0, 0, 8};
+    const int n = std::sscanf(item.c_str(), "%u,%u,%u,%u,%u,%u,%u,%u,%u", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6],
+                              &v[7], &v[8]);
+    if (n < 7) throw InvalidArgument("--blockings: '" + item + "' is not T,R,B,V,RJ,RK,ROWS[,F[,G]]");
+    out.push_back({v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]});
+  }
+  return out;
+}
+
+void tune_net(const Device& device, const NetSpec& spec, const Options& o, double peak) {
+  const auto blockings = parse_blockings(o.blockings);
+  std::printf("\n%s: %u -> %u x %u -> %u, batch %u\n", spec.name.c_str(), spec.n_in, spec.n_hidden, spec.width, spec.n_out,
+              spec.batch);
+  std::vector<std::unique_ptr<Network>> nets;
+  for (const auto& b : blockings) {
+    nets.push_back(create_network({{"n_neurons", spec.width}, {"n_hidden_layers", spec.n_hidden}}, spec.n_in, spec.n_out));
+    dynamic_cast<FullyFusedMLP&>(*nets.back()).set_blocking(b);
+  }
+  const auto& net0 = dynamic_cast<const FullyFusedMLP&>(*nets[0]);
+  std::vector<float> params(net0.n_params());
+  net0.initialize_params(params.data(), 1);
+  {  // non-zero biases, as bench_net
+    auto r = random_vector(params.size(), 2, -0.1f, 0.1f);
+    for (std::uint32_t l = 0; l <= net0.n_hidden_layers(); ++l)
+      for (std::uint32_t j = 0; j < net0.layer_outputs(l); ++j) {
+        const std::size_t i = net0.layer_offset(l) + std::size_t(j) * (net0.layer_inputs(l) + 1) + net0.layer_inputs(l);
+        params[i] = r[i];
+      }
+  }
+  const std::uint32_t n = spec.batch, nv = std::min<std::uint32_t>(n, 1024);
+  const auto xh = random_vector(std::size_t(n) * spec.n_in, 3);
+  const auto dyh = random_vector(std::size_t(n) * spec.n_out, 4, -1e-3f, 1e-3f);
+  reference::MlpReference ref(net0, params);
+  const std::vector<float> xv(xh.begin(), xh.begin() + std::size_t(nv) * spec.n_in);
+  const std::vector<float> dyv(dyh.begin(), dyh.begin() + std::size_t(nv) * spec.n_out);
+  const reference::Mat xm = reference::to_mat(xv, nv, spec.n_in);
+  const auto want_y = reference::flatten(ref.forward(xm));
+  std::vector<double> want_dp;
+  reference::Mat dxm;
+  ref.backward(xm, reference::to_mat(dyv, nv, spec.n_out), want_dp, dxm);
+  const auto want_dx = reference::flatten(dxm);
+  Buffer<float> pbuf(device, params), gbuf(device, params.size());
+  BatchMatrix x(device, n, spec.n_in), y(device, n, spec.n_out), dy(device, n, spec.n_out), dx(device, n, spec.n_in);
+  std::vector<std::unique_ptr<Workspace>> ws;
+  for (std::size_t i = 0; i < nets.size(); ++i) {
+    const auto& net = dynamic_cast<const FullyFusedMLP&>(*nets[i]);
+    ws.push_back(net.make_workspace(device));
+    x.resize(nv), y.resize(nv), dy.resize(nv), dx.resize(nv);
+    x.upload_row_major(xv);
+    dy.upload_row_major(dyv);
+    net.forward(device, {&pbuf, 0}, x, y, *ws.back());
+    net.backward(device, {&pbuf, 0}, x, y, dy, {&gbuf, 0}, false, &dx, *ws.back());
+    device.finish();
+    const std::string b = blockings[i].str();
+    verify(b + " forward", reference::worst_ratio(y.download_row_major(), want_y, 1e-4));
+    verify(b + " dL/dparams", reference::worst_ratio(gbuf.read(), want_dp, 1e-3));
+    verify(b + " dL/dinput", reference::worst_ratio(dx.download_row_major(), want_dx, 1e-3));
+  }
+  x.resize(n), y.resize(n), dy.resize(n), dx.resize(n);
+  x.upload_row_major(xh);
+  dy.upload_row_major(dyh);
+  std::vector<std::vector<double>> tf(nets.size()), tt(nets.size());
+  for (int rep = 0; rep < o.reps; ++rep)
+    for (std::size_t i = 0; i < nets.size(); ++i) {
+      const auto& net = dynamic_cast<const FullyFusedMLP&>(*nets[i]);
+      auto t0 = Clock::now();
+      net.inference(device, {&pbuf, 0}, x, y);
+      device.finish();
+      tf[i].push_back(seconds_since(t0));
+      t0 = Clock::now();
+      net.forward(device, {&pbuf, 0}, x, y, *ws[i]);
+      net.backward(device, {&pbuf, 0}, x, y, dy, {&gbuf, 0}, false, &dx, *ws[i]);
+      device.finish();
+      tt[i].push_back(seconds_since(t0));
+    }
+  const double ff = net0.flops_per_sample() * n;
+  std::printf("%-28s %10s %8s %10s %8s\n", "blocking", "fwd ms", "fwd %pk", "train ms", "trn %pk");
+  for (std::size_t i = 0; i < nets.size(); ++i) {
+    auto med = [](std::vector<double> v) {
+      std::sort(v.begin(), v.end());
+      return v[v.size() / 2];
+    };
+    const double f = med(tf[i]), t = med(tt[i]);
+    std::printf("%-28s %10.2f %7.1f%% %10.2f %7.1f%%\n", blockings[i].str().c_str(), f * 1e3,
+                100 * ff / f * 1e-9 / peak, t * 1e3, 100 * 3 * ff / t * 1e-9 / peak);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -437,6 +541,7 @@ int main(int argc, char** argv) {
     else if (a == "--device" && i + 1 < argc) o.device = argv[++i];
     else if (a == "--variants" && i + 1 < argc) o.variants = argv[++i];
     else if (a == "--reps" && i + 1 < argc) o.reps = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--blockings" && i + 1 < argc) o.blockings = argv[++i];
     else {
       std::fprintf(stderr, "usage: bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants fused,eigen,clblast]\n");
       return 2;
@@ -454,10 +559,19 @@ int main(int argc, char** argv) {
     std::printf("\npeak (calibrated FMA loop, kernels/peak.cl):\n");
     const auto peaks = measure_peak(device, o);
     double peak = 0;
-    for (const auto& p : peaks) peak = std::max(peak, p.gflops);
+    std::string peak_name;
+    for (const auto& p : peaks)
+      if (p.gflops > peak) peak = p.gflops, peak_name = p.variant;
+    std::printf("  %% of peak below: of %s (%.1f GFLOP/s), the faster calibration\n", peak_name.c_str(), peak);
 
     const std::uint32_t batch = o.smoke ? 1000 : 76800;
     std::vector<NetSpec> specs = {{"small (3x64)", 32, 64, 3, 16, batch}, {"paper (8x256)", 64, 256, 8, 16, o.smoke ? 200 : batch}};
+    if (!o.blockings.empty()) {
+      for (const auto& s : specs)
+        if (o.variants.find('w') == std::string::npos || o.wants(s.width >= 256 ? "w256" : "w64"))
+          tune_net(device, s, o, peak);
+      return g_failures ? 1 : 0;
+    }
     std::vector<NetResult> results;
     for (const auto& s : specs) results.push_back(bench_net(device, s, o));
 

@@ -1,18 +1,21 @@
 // mlp.cl: the fully fused MLP (FullyFusedMLP): forward, backward (dL/dinput and the per-layer dL/dZ), the
-// per-chunk weight-gradient partials and their fixed-order reduction. Deterministic, no atomics.
+// per-chunk weight-gradient partials and their fixed-order reduction, and a fused training step for small
+// networks on CPUs (mlp_train_fused, at the end). Deterministic, no atomics.
 //
 // Batch layout (BatchMatrix, see relit/nn/batch.hpp): 16 consecutive samples of one feature are contiguous,
 //
 //   tile t:  [f0: s0 .. s15][f1: s0 .. s15] ... [f(cols-1): s0 .. s15]      (16 floats = one float16)
 //
-// so one work-item owns one tile (16 samples) and every value it handles is a float16 whose lanes are
-// samples: PoCL maps it onto SIMD registers, a GPU treats it as 16 independent scalars.
+// so one work-item owns FWD_T tiles (16 samples each) and every value it handles is a float16 whose lanes
+// are samples: PoCL maps it onto SIMD registers, a GPU treats it as 16 independent scalars.
 //
-// Register blocking (forward, dL/dinput): FWD_R outputs at a time, all inputs k streamed through:
+// Register blocking (forward, dL/dinput): FWD_R outputs at a time for the FWD_T tiles, all inputs k
+// streamed through:
 //
-//        acc[r] (float16, lanes = samples)  +=  W[j0 + r][k] (broadcast)  *  in[k] (float16)
+//        acc[r][u] (float16, lanes = samples)  +=  W[j0 + r][k] (broadcast)  *  in[k] of tile u (float16)
 //
-//   per k: one float16 load, FWD_R broadcasts, FWD_R float16 FMAs: FWD_R independent accumulator chains.
+//   per k: FWD_T float16 loads, FWD_R broadcasts, FWD_R * FWD_T FMAs (independent accumulator chains).
+//   AVX2 and GPUs: FWD_T = 1, FWD_R = 4; AVX-512 (32 registers): FWD_T = 4, FWD_R = 6 (FullyFusedMLP::Blocking).
 //
 // Parameters (one layer after the other, layer l = 0 .. N_HIDDEN): a row-major [n_out_l][n_in_l + BIAS]
 // matrix whose last column is the bias when BIAS = 1. n_in_0 = N_IN; hidden layer l >= 1 has n_in = WIDTH,
@@ -49,6 +52,18 @@
 #endif
 #ifndef FWD_R
 #define FWD_R 4
+#endif
+#ifndef FWD_T
+#define FWD_T 1       // tiles (of 16 samples) per work-item in the forward and backward kernels
+#endif
+#ifndef BWD_R
+#define BWD_R FWD_R   // register block of the backward kernel
+#endif
+#ifndef DW_VEC
+#define DW_VEC 8      // samples per accumulator of the weight-gradient kernel: 8 or 16
+#endif
+#ifndef TRAIN_G
+#define TRAIN_G (4 * FWD_T)  // tiles per group of the fused training kernel, a multiple of FWD_T
 #endif
 #ifndef DW_RJ
 #define DW_RJ 4
@@ -111,42 +126,70 @@ inline float16 hidden_act(float16 z) {
 #endif
 }
 
-// acc[r] += sum_k w[(j0 + r) * stride + k] * SRC(k), for r < NR (NR is a compile-time constant, so the r
-// loop unrolls and acc[] lives in registers).
+// acc[r][u] += sum_k w[(j0 + r) * stride + k] * SRC(k, u), for r < NR and the FWD_T tiles u (compile-time
+// constants, so the r and u loops unroll and acc[][] lives in registers). Per k: FWD_T activation loads, NR
+// weight broadcasts, NR * FWD_T FMAs: with FWD_T = 2 every broadcast feeds two FMAs.
 #define ACCUM(acc, NR, SRC, K, w, stride, j0)                                          \
   for (uint k_ = 0; k_ < (uint)(K); ++k_) {                                            \
-    const float16 x_ = SRC(k_);                                                        \
-    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_)                              \
-        acc[r_] = fma((float16)((w)[((j0) + r_) * (stride) + k_]), x_, acc[r_]);      \
+    float16 x_[FWD_T];                                                                 \
+    _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) x_[u_] = SRC(k_, u_);       \
+    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                            \
+      const float16 w_ = (float16)((w)[((j0) + r_) * (stride) + k_]);                  \
+      _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_)                           \
+          acc[r_][u_] = fma(w_, x_[u_], acc[r_][u_]);                                  \
+    }                                                                                  \
   }
 
-// acc[r] += sum_j w[j * stride + k0 + r] * SRC(j): the transposed product of the backward pass.
+// acc[r][u] += sum_j w[j * stride + k0 + r] * SRC(j, u): the transposed product of the backward pass.
 #define ACCUM_T(acc, NR, SRC, J, w, stride, k0)                                        \
   for (uint j_ = 0; j_ < (uint)(J); ++j_) {                                            \
-    const float16 g_ = SRC(j_);                                                        \
+    float16 g_[FWD_T];                                                                 \
+    _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) g_[u_] = SRC(j_, u_);       \
     __global const float* wr_ = (w) + j_ * (stride) + (k0);                            \
-    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_)                              \
-        acc[r_] = fma((float16)(wr_[r_]), g_, acc[r_]);                               \
+    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                            \
+      const float16 w_ = (float16)(wr_[r_]);                                           \
+      _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_)                           \
+          acc[r_][u_] = fma(w_, g_[u_], acc[r_][u_]);                                  \
+    }                                                                                  \
   }
 
 #define INIT_BIAS(acc, NR, w, stride, j0, K)                                           \
+  _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                              \
+    const float16 b_ = BIAS ? (float16)((w)[((j0) + r_) * (stride) + (K)]) : (float16)0.0f; \
+    _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) acc[r_][u_] = b_;           \
+  }
+
+#define INIT_ZERO(acc, NR)                                                             \
   _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_)                                \
-      acc[r_] = BIAS ? (float16)((w)[((j0) + r_) * (stride) + (K)]) : (float16)0.0f;
+      _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) acc[r_][u_] = (float16)0.0f;
+
+// The FWD_T tiles of work-item `item`: FWD_T * item + u, clamped to the last tile. A work-item past the end
+// of an odd tile count recomputes the last tile and writes the same values again (no branches, no reads
+// past the end of the batch).
+#define ITEM_TILES(tile, item, n_tiles)                                                \
+  size_t tile[FWD_T];                                                                  \
+  _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_)                               \
+      tile[u_] = min((item) * FWD_T + u_, (size_t)(n_tiles) - 1);
+
+// Private and scratch arrays hold feature f of tile u at [f * HS + u]: HS = FWD_T in the forward and backward
+// kernels, TRAIN_G in the fused training kernel (which runs the blocks on FWD_T of its TRAIN_G tiles at a time).
+#define HS FWD_T
 
 // ---------------------------------------------------------------------------------------------------------
-// Forward. One work-item = one tile of 16 samples; all layers in registers/private memory. With save != 0
-// the training workspace `act` (feature-major: row f holds feature f of every sample, rows `padded` floats
-// apart) receives the rows [x (N_IN), ones, h_0 (WIDTH), ..., h_(N_HIDDEN-1)], h_l after the activation: the
-// backward pass reads h_l, and the weight-gradient kernel streams every row contiguously over the batch.
+// Forward. One work-item = FWD_T tiles of 16 samples; all layers in registers/private memory (per feature k
+// the FWD_T tiles' float16 values are adjacent: h[k * FWD_T + u]). With save != 0 the training workspace
+// `act` (feature-major: row f holds feature f of every sample, rows `padded` floats apart) receives the rows
+// [x (N_IN), ones, h_0 (WIDTH), ..., h_(N_HIDDEN-1)], h_l after the activation: the backward pass reads h_l,
+// and the weight-gradient kernel streams every row contiguously over the batch.
 // ---------------------------------------------------------------------------------------------------------
 
-#define SRC_X(k) vload16(0, xt + (k) * TILE)
-#define SRC_H(k) hin[k]
+#define SRC_X(k, u) vload16(0, xt[u] + (k) * TILE)
+#define SRC_H(k, u) hin[(k) * HS + (u)]
 
 // One hidden layer block of NR outputs starting at j0.
 #define HIDDEN_BLOCK(NR, j0)                                                                   \
   {                                                                                            \
-    float16 acc[NR];                                                                           \
+    float16 acc[NR][FWD_T];                                                                    \
     INIT_BIAS(acc, NR, w, stride, j0, kin)                                                     \
     if (l == 0) {                                                                              \
       ACCUM(acc, NR, SRC_X, N_IN, w, stride, j0)                                               \
@@ -154,36 +197,49 @@ inline float16 hidden_act(float16 z) {
       ACCUM(acc, NR, SRC_H, WIDTH, w, stride, j0)                                              \
       if (skip) { __global const float* ws_ = w + WIDTH; ACCUM(acc, NR, SRC_X, N_IN, ws_, stride, j0) } \
     }                                                                                          \
-    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) {                                        \
-      const float16 y = hidden_act(acc[r]);                                                    \
-      hout[(j0) + r] = y;                                                                      \
-      if (save) vstore16(y, 0, st + ((j0) + r) * (size_t)padded);                              \
-    }                                                                                          \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
+      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                     \
+        const float16 y = hidden_act(acc[r][u]);                                               \
+        hout[((j0) + r) * HS + u] = y;                                                         \
+        if (save) vstore16(y, 0, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);           \
+      }                                                                                        \
   }
 
 #define OUTPUT_BLOCK(NR, j0)                                                                   \
   {                                                                                            \
-    float16 acc[NR];                                                                           \
+    float16 acc[NR][FWD_T];                                                                    \
     INIT_BIAS(acc, NR, w, stride, j0, WIDTH)                                                   \
     ACCUM(acc, NR, SRC_H, WIDTH, w, stride, j0)                                                \
     _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
-        vstore16(apply_act(acc[r], k_out_act[(j0) + r]), 0, yt + ((j0) + r) * TILE);           \
+      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u)                                       \
+        vstore16(apply_act(acc[r][u], k_out_act[(j0) + r]), 0, yt[u] + ((j0) + r) * TILE);     \
   }
 
+// n_items = ceil(n_tiles / FWD_T) work-items.
 __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const float* restrict params,
                           const uint param_offset, __global const float* restrict x, __global float* restrict y,
                           __global float* restrict act, const uint save) {
-  const size_t t = get_global_id(0);
-  if (t >= n_tiles) return;
+  const size_t item = get_global_id(0);
+  if (item * FWD_T >= n_tiles) return;
+  ITEM_TILES(tile, item, n_tiles)
   __global const float* p = params + param_offset;
-  __global const float* xt = x + t * (size_t)(N_IN * TILE);
-  __global float* yt = y + t * (size_t)(N_OUT * TILE);
+  __global const float* xt[FWD_T];
+  __global float* yt[FWD_T];
+#pragma unroll
+  for (uint u = 0; u < FWD_T; ++u) {
+    xt[u] = x + tile[u] * (size_t)(N_IN * TILE);
+    yt[u] = y + tile[u] * (size_t)(N_OUT * TILE);
+  }
 
   if (save) {  // the weight gradients' inputs of layer 0 (and skips): x and the bias column of ones
-    for (uint k = 0; k < N_IN; ++k) vstore16(vload16(0, xt + k * TILE), 0, act + (size_t)k * padded + t * TILE);
-    vstore16((float16)1.0f, 0, act + (size_t)N_IN * padded + t * TILE);
+#pragma unroll
+    for (uint u = 0; u < FWD_T; ++u) {
+      for (uint k = 0; k < N_IN; ++k)
+        vstore16(vload16(0, xt[u] + k * TILE), 0, act + (size_t)k * padded + tile[u] * TILE);
+      vstore16((float16)1.0f, 0, act + (size_t)N_IN * padded + tile[u] * TILE);
+    }
   }
-  float16 h[2][WIDTH];
+  float16 h[2][WIDTH * FWD_T];
   for (uint l = 0; l < N_HIDDEN; ++l) {
     const uint skip = (((uint)(SKIP_MASK)) >> l) & 1u;
     const uint kin = LAYER_IN(l);
@@ -191,7 +247,7 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
     __global const float* w = p + layer_offset(l);
     __private float16* hin = h[(l + 1) & 1];
     __private float16* hout = h[l & 1];
-    __global float* st = act + (size_t)(ACT_H0 + l * WIDTH) * padded + t * TILE;
+    __global float* st = act + (size_t)(ACT_H0 + l * WIDTH) * padded;
     for (uint j0 = 0; j0 + FWD_R <= WIDTH; j0 += FWD_R) HIDDEN_BLOCK(FWD_R, j0)
 #if WIDTH % FWD_R
     HIDDEN_BLOCK(WIDTH % FWD_R, WIDTH - WIDTH % FWD_R)
@@ -210,90 +266,102 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 
 // ---------------------------------------------------------------------------------------------------------
 // Backward through the activations: dZ_l = dL/d(pre-activation of layer l) for every layer, written to `dz`
-// (feature-major like `act`: rows [dZ_0 (WIDTH), ..., dZ_(N_HIDDEN-1), dZ_out (N_OUT)]), and dL/dx into `dx` when want_dx. Lanes of samples >= batch get zero gradients, so the weight
-// gradients never see the padding rows whatever d_output holds there.
+// (feature-major like `act`: rows [dZ_0 (WIDTH), ..., dZ_(N_HIDDEN-1), dZ_out (N_OUT)]), and dL/dx into `dx`
+// when want_dx. One work-item = FWD_T tiles, register blocks of BWD_R inputs. Lanes of samples >= batch get
+// zero gradients, so the weight gradients never see the padding rows whatever d_output holds there.
 // ---------------------------------------------------------------------------------------------------------
 
-#define SRC_G(j) gin[j]
+#define SRC_G(j, u) gin[(j) * HS + (u)]
 
 // NR inputs k0.. of dL/dh_(l-1) = W_l^T dZ_l, masked by the activation derivative of h_(l-1).
 #define BACK_HIDDEN_BLOCK(NR, k0)                                                              \
   {                                                                                            \
-    float16 acc[NR];                                                                           \
-    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) acc[r] = (float16)0.0f;                 \
+    float16 acc[NR][FWD_T];                                                                    \
+    INIT_ZERO(acc, NR)                                                                         \
     ACCUM_T(acc, NR, SRC_G, nout, w, stride, k0)                                               \
-    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) {                                        \
-      float16 g = acc[r];                                                                      \
-      if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, vload16(0, at + ((k0) + r) * (size_t)padded) > 0.0f); \
-      gout[(k0) + r] = g;                                                                      \
-      vstore16(g, 0, dzt + ((k0) + r) * (size_t)padded);                                       \
-    }                                                                                          \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
+      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                     \
+        float16 g = acc[r][u];                                                                 \
+        const size_t o_ = ((k0) + r) * (size_t)padded + tile[u] * TILE;                       \
+        if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, vload16(0, at + o_) > 0.0f);  \
+        gout[((k0) + r) * HS + u] = g;                                                         \
+        vstore16(g, 0, dzt + o_);                                                              \
+      }                                                                                        \
   }
 
 // NR inputs k0.. of dL/dx from the input columns starting at column `xcol` of layer w (layer 0 or a skip).
 #define BACK_INPUT_BLOCK(NR, k0)                                                               \
   {                                                                                            \
-    float16 acc[NR];                                                                           \
-    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) acc[r] = (float16)0.0f;                 \
+    float16 acc[NR][FWD_T];                                                                    \
+    INIT_ZERO(acc, NR)                                                                         \
     __global const float* wx_ = w + xcol;                                                      \
     ACCUM_T(acc, NR, SRC_G, nout, wx_, stride, k0)                                             \
-    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) {                                        \
-      __global float* d_ = dxt + ((k0) + r) * TILE;                                            \
-      vstore16(first ? acc[r] : acc[r] + vload16(0, d_), 0, d_);                               \
-    }                                                                                          \
+    /* all loads before the stores: a duplicated last tile (see ITEM_TILES) must not add twice */ \
+    if (!first)                                                                                \
+      _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                        \
+        _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u)                                     \
+          acc[r][u] += vload16(0, dxt[u] + ((k0) + r) * TILE);                                 \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
+      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u)                                       \
+        vstore16(acc[r][u], 0, dxt[u] + ((k0) + r) * TILE);                                    \
   }
 
 #define BACK_INPUT(first_)                                                                     \
   {                                                                                            \
     const uint first = (first_);                                                               \
-    for (uint k0 = 0; k0 + FWD_R <= N_IN; k0 += FWD_R) BACK_INPUT_BLOCK(FWD_R, k0)             \
+    for (uint k0 = 0; k0 + BWD_R <= N_IN; k0 += BWD_R) BACK_INPUT_BLOCK(BWD_R, k0)             \
     BACK_INPUT_TAIL                                                                            \
   }
-#if N_IN % FWD_R
-#define BACK_INPUT_TAIL BACK_INPUT_BLOCK(N_IN % FWD_R, N_IN - N_IN % FWD_R)
+#if N_IN % BWD_R
+#define BACK_INPUT_TAIL BACK_INPUT_BLOCK(N_IN % BWD_R, N_IN - N_IN % BWD_R)
 #else
 #define BACK_INPUT_TAIL
 #endif
 
+// n_items = ceil(n_tiles / FWD_T) work-items.
 __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint batch,
                            __global const float* restrict params, const uint param_offset,
                            __global const float* restrict y, __global const float* restrict dy,
                            __global const float* restrict act, __global float* restrict dz,
                            __global float* restrict dx, const uint want_dx) {
-  const size_t t = get_global_id(0);
-  if (t >= n_tiles) return;
+  const size_t item = get_global_id(0);
+  if (item * FWD_T >= n_tiles) return;
+  ITEM_TILES(tile, item, n_tiles)
   __global const float* p = params + param_offset;
   const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-  const int16 valid = (int16)((int)(t * TILE)) + lane < (int16)((int)batch);
 
-  float16 g[2][GMAX];
-  {  // dZ of the output layer.
-    __global const float* yt = y + t * (size_t)(N_OUT * TILE);
-    __global const float* dyt = dy + t * (size_t)(N_OUT * TILE);
-    __global float* dzt = dz + (size_t)N_HIDDEN * padded * WIDTH + t * TILE;
+  float16 g[2][GMAX * FWD_T];
+#pragma unroll
+  for (uint u = 0; u < FWD_T; ++u) {  // dZ of the output layer.
+    const int16 valid = (int16)((int)(tile[u] * TILE)) + lane < (int16)((int)batch);
+    __global const float* yt = y + tile[u] * (size_t)(N_OUT * TILE);
+    __global const float* dyt = dy + tile[u] * (size_t)(N_OUT * TILE);
+    __global float* dzt = dz + (size_t)N_HIDDEN * padded * WIDTH + tile[u] * TILE;
     for (uint j = 0; j < N_OUT; ++j) {
       const float16 d = vload16(0, dyt + j * TILE) * act_grad(vload16(0, yt + j * TILE), k_out_act[j]);
       const float16 dm = select((float16)0.0f, d, valid);
-      g[N_HIDDEN & 1][j] = dm;
+      g[N_HIDDEN & 1][j * FWD_T + u] = dm;
       vstore16(dm, 0, dzt + j * (size_t)padded);
     }
   }
-  __global float* dxt = dx + t * (size_t)(N_IN * TILE);
+  __global float* dxt[FWD_T];
+#pragma unroll
+  for (uint u = 0; u < FWD_T; ++u) dxt[u] = dx + tile[u] * (size_t)(N_IN * TILE);
   for (uint l = N_HIDDEN; l >= 1; --l) {
     const uint nout = LAYER_OUT(l);
     const uint stride = LAYER_STRIDE(l);
     __global const float* w = p + layer_offset(l);
     __private const float16* gin = g[l & 1];
     __private float16* gout = g[(l + 1) & 1];
-    __global const float* at = act + (size_t)(ACT_H0 + (l - 1) * WIDTH) * padded + t * TILE;
-    __global float* dzt = dz + (size_t)(l - 1) * WIDTH * padded + t * TILE;
+    __global const float* at = act + (size_t)(ACT_H0 + (l - 1) * WIDTH) * padded;
+    __global float* dzt = dz + (size_t)(l - 1) * WIDTH * padded;
     if (want_dx && ((((uint)(SKIP_MASK)) >> l) & 1u)) {
       const uint xcol = WIDTH;
       BACK_INPUT(l == TOP_SKIP)
     }
-    for (uint k0 = 0; k0 + FWD_R <= WIDTH; k0 += FWD_R) BACK_HIDDEN_BLOCK(FWD_R, k0)
-#if WIDTH % FWD_R
-    BACK_HIDDEN_BLOCK(WIDTH % FWD_R, WIDTH - WIDTH % FWD_R)
+    for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) BACK_HIDDEN_BLOCK(BWD_R, k0)
+#if WIDTH % BWD_R
+    BACK_HIDDEN_BLOCK(WIDTH % BWD_R, WIDTH - WIDTH % BWD_R)
 #endif
   }
   if (want_dx) {
@@ -314,15 +382,35 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
 //
 // One work-item = one chunk x DW_ROWS rows of dW. It walks its chunk in sub-chunks of `sub` samples (sized by
 // the host so the sub-chunk's input rows stay in cache); per sub-chunk it computes every DW_RJ x DW_RK
-// register block of its rows: float8 accumulators whose lanes are samples,
+// register block of its rows: accumulators of DW_VEC (8 or 16) floats whose lanes are samples,
 //
-//   acc[i][r] += dz[j0 + i][s .. s+7] * in[k0 + r][s .. s+7]          (DW_RJ + DW_RK loads, DW_RJ*DW_RK FMAs)
+//   acc[i][r] += dz[j0 + i][s ..] * in[k0 + r][s ..]                  (DW_RJ + DW_RK loads, DW_RJ*DW_RK FMAs)
 //
 // and adds the lane sums into its partial rows. Partial sums go to per-chunk slots: no atomics, and the
 // reduction below adds chunks in a fixed order (bit-for-bit reproducible).
 // ---------------------------------------------------------------------------------------------------------
 #ifndef DW_ROWS
 #define DW_ROWS (4 * DW_RJ)
+#endif
+
+// The accumulators: DW_VEC samples (float8: one 256-bit register, float16: one 512-bit register).
+#if DW_VEC == 16
+typedef float16 dw_vec;
+#define DW_LOAD(p) vload16(0, (p))
+inline float dw_sum(float16 v) {
+  const float8 s8 = v.lo + v.hi;
+  const float4 s4 = s8.lo + s8.hi;
+  const float2 s2 = s4.lo + s4.hi;
+  return s2.x + s2.y;
+}
+#else
+typedef float8 dw_vec;
+#define DW_LOAD(p) vload8(0, (p))
+inline float dw_sum(float8 v) {
+  const float4 s4 = v.lo + v.hi;
+  const float2 s2 = s4.lo + s4.hi;
+  return s2.x + s2.y;
+}
 #endif
 
 __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len, const uint n_chunks,
@@ -357,18 +445,18 @@ __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len
           const uint k = min(k0 + r, n_in - 1);
           inp[r] = act + (size_t)(k < a_n ? a_row + k : x_row + (k - a_n)) * padded;
         }
-        float8 acc[DW_RJ][DW_RK];
+        dw_vec acc[DW_RJ][DW_RK];
 #pragma unroll
         for (uint i = 0; i < DW_RJ; ++i)
 #pragma unroll
-          for (uint r = 0; r < DW_RK; ++r) acc[i][r] = (float8)0.0f;
-        for (uint s = ss; s < se; s += 8) {
-          float8 xv[DW_RK];
+          for (uint r = 0; r < DW_RK; ++r) acc[i][r] = (dw_vec)0.0f;
+        for (uint s = ss; s < se; s += DW_VEC) {
+          dw_vec xv[DW_RK];
 #pragma unroll
-          for (uint r = 0; r < DW_RK; ++r) xv[r] = vload8(0, inp[r] + s);
+          for (uint r = 0; r < DW_RK; ++r) xv[r] = DW_LOAD(inp[r] + s);
 #pragma unroll
           for (uint i = 0; i < DW_RJ; ++i) {
-            const float8 d = vload8(0, dzp[i] + s);
+            const dw_vec d = DW_LOAD(dzp[i] + s);
 #pragma unroll
             for (uint r = 0; r < DW_RK; ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);
           }
@@ -378,11 +466,9 @@ __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len
 #pragma unroll
           for (uint r = 0; r < DW_RK; ++r) {
             if (j0 + i < jr1 && k0 + r < n_in) {
-              const float8 v = acc[i][r];
-              const float4 s4 = v.lo + v.hi;
-              const float2 s2 = s4.lo + s4.hi;
+              const float v = dw_sum(acc[i][r]);
               __global float* o = out + (j0 + i) * n_in + k0 + r;
-              *o = first ? s2.x + s2.y : *o + (s2.x + s2.y);
+              *o = first ? v : *o + v;
             }
           }
       }
@@ -409,4 +495,188 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
       g[k] = accumulate ? g[k] + s : s;
     }
   }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Fused training step for small networks (CPUs): one work-item = one chunk of the batch, walked TRAIN_G tiles
+// at a time. Per group it recomputes the forward pass into its scratch rows, back-propagates dZ through the
+// layers (dL/dx on the way), and adds every layer's dZ x input products into float16 accumulators, one per
+// parameter (lanes = the samples' position in their tile). Outside its scratch, which stays in the core's L2
+// cache (the host picks this kernel only while the accumulators, 64 bytes per parameter, are small), nothing
+// but x, y, dy and dx is read or written; the separate kernels above write and re-read the saved activations
+// and every dZ, and on a CPU they are bound by that memory traffic. The forward and backward blocks run on
+// FWD_T tiles at a time; the weight-gradient blocks on all TRAIN_G tiles, so that each accumulator load and
+// store feeds TRAIN_G FMAs. At the end of its chunk the work-item writes the lane sums to its partial slot;
+// mlp_reduce_chunks adds the chunks in a fixed order (deterministic, no atomics).
+//
+// scratch (per work-item, scratch_stride floats apart, 64-byte aligned):
+//   acc   n_params float16           accumulator of parameter i (the parameters' layout)
+//   rows  N_ROWS x TRAIN_G float16   like `act`: x (N_IN), ones, h_0 .. h_(N_HIDDEN-1)
+//   g     2 x GMAX x TRAIN_G float16 dZ of the current layer and of the one below
+//   sink  N_IN x TILE floats         dL/dx of repeated tiles (past the chunk's end) goes here
+// ---------------------------------------------------------------------------------------------------------
+#undef HS
+#define HS TRAIN_G
+#define N_ROWS (ACT_H0 + N_HIDDEN * WIDTH)
+
+inline float sum16(float16 v) {
+  const float8 s8 = v.lo + v.hi;
+  const float4 s4 = s8.lo + s8.hi;
+  const float2 s2 = s4.lo + s4.hi;
+  return s2.x + s2.y;
+}
+
+// dL/dh_(l-1) for NR inputs k0..: W_l^T dZ_l masked by the ReLU of h_(l-1) (scratch rows), into gout.
+#define TRAIN_BACK_BLOCK(NR, k0)                                                               \
+  {                                                                                            \
+    float16 acc[NR][FWD_T];                                                                    \
+    INIT_ZERO(acc, NR)                                                                         \
+    ACCUM_T(acc, NR, SRC_G, nout, w, stride, k0)                                               \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
+      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                     \
+        float16 g = acc[r][u];                                                                 \
+        if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, hprev[((k0) + r) * HS + u] > 0.0f); \
+        gout[((k0) + r) * HS + u] = g;                                                         \
+      }                                                                                        \
+  }
+
+// The FWD_T tiles of sub-group s of the group starting at tile tb: tile indices (clamped to the chunk), x
+// and dL/dx pointers (the sink for tiles past the chunk's end).
+#define SUB_TILES(s)                                                                           \
+  size_t tile[FWD_T];                                                                          \
+  __global const float* xt[FWD_T];                                                             \
+  __global float* dxt[FWD_T];                                                                  \
+  _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                         \
+    const size_t t_ = tb + (s) * FWD_T + u;                                                    \
+    tile[u] = min(t_, t_end - 1);                                                              \
+    xt[u] = x + tile[u] * (size_t)(N_IN * TILE);                                               \
+    dxt[u] = t_ < t_end ? dx + tile[u] * (size_t)(N_IN * TILE) : sink;                         \
+  }
+
+__kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint chunk_tiles, const uint n_params,
+                              __global const float* restrict params, const uint param_offset,
+                              __global const float* restrict x, __global const float* restrict y,
+                              __global const float* restrict dy, __global float* restrict dx, const uint want_dx,
+                              __global float* restrict scratch, const uint scratch_stride,
+                              __global float* restrict partial, const uint partial_stride) {
+  const size_t c = get_global_id(0);
+  const size_t t_begin = c * chunk_tiles;
+  if (t_begin >= n_tiles) return;
+  const size_t t_end = min(t_begin + chunk_tiles, (size_t)n_tiles);
+  __global const float* p = params + param_offset;
+  __global float16* accv = (__global float16*)(scratch + c * scratch_stride);
+  __global float16* rows = accv + n_params;
+  __global float16* gbuf = rows + N_ROWS * TRAIN_G;
+  __global float* sink = (__global float*)(gbuf + 2 * GMAX * TRAIN_G);
+  const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  for (uint i = 0; i < n_params; ++i) accv[i] = (float16)0.0f;
+  for (uint u = 0; u < TRAIN_G; ++u) rows[N_IN * TRAIN_G + u] = (float16)1.0f;
+  const uint save = 0, padded = 0;  // the forward blocks keep their activations in the scratch only
+  __global float* st = 0;
+
+  for (size_t tb = t_begin; tb < t_end; tb += TRAIN_G) {
+    // Forward through the hidden layers (the output y is the caller's, from forward()).
+    for (uint sg = 0; sg < TRAIN_G / FWD_T; ++sg) {
+      SUB_TILES(sg)
+      for (uint k = 0; k < N_IN; ++k)
+#pragma unroll
+        for (uint u = 0; u < FWD_T; ++u) rows[k * HS + sg * FWD_T + u] = vload16(0, xt[u] + k * TILE);
+      for (uint l = 0; l < N_HIDDEN; ++l) {
+        const uint skip = (((uint)(SKIP_MASK)) >> l) & 1u;
+        const uint kin = LAYER_IN(l);
+        const uint stride = kin + BIAS;
+        __global const float* w = p + layer_offset(l);
+        __global const float16* hin = rows + (l == 0 ? 0 : ACT_H0 + (l - 1) * WIDTH) * HS + sg * FWD_T;
+        __global float16* hout = rows + (ACT_H0 + l * WIDTH) * HS + sg * FWD_T;
+        for (uint j0 = 0; j0 + FWD_R <= WIDTH; j0 += FWD_R) HIDDEN_BLOCK(FWD_R, j0)
+#if WIDTH % FWD_R
+        HIDDEN_BLOCK(WIDTH % FWD_R, WIDTH - WIDTH % FWD_R)
+#endif
+      }
+    }
+
+    // dZ of the output layer; zero for samples past the batch and for tiles past the chunk's end.
+    {
+      __global float16* gout = gbuf + (N_HIDDEN & 1) * GMAX * HS;
+      for (uint u = 0; u < TRAIN_G; ++u) {
+        const size_t t_ = tb + u, tu = min(t_, t_end - 1);
+        const int16 valid = ((int16)((int)(tu * TILE)) + lane < (int16)((int)batch)) & (int16)(t_ < t_end ? -1 : 0);
+        __global const float* yt = y + tu * (size_t)(N_OUT * TILE);
+        __global const float* dyt = dy + tu * (size_t)(N_OUT * TILE);
+        for (uint j = 0; j < N_OUT; ++j) {
+          const float16 d = vload16(0, dyt + j * TILE) * act_grad(vload16(0, yt + j * TILE), k_out_act[j]);
+          gout[j * HS + u] = select((float16)0.0f, d, valid);
+        }
+      }
+    }
+
+    for (uint l = N_HIDDEN;; --l) {
+      const uint nout = LAYER_OUT(l);
+      const uint stride = LAYER_STRIDE(l);
+      const uint lskip = l > 0 && ((((uint)(SKIP_MASK)) >> l) & 1u);
+      __global const float* w = p + layer_offset(l);
+      // Input rows of layer l in the scratch: a_n activation rows from a_row, then from x_row (x and/or ones).
+      const uint a_row = l == 0 ? 0 : ACT_H0 + (l - 1) * WIDTH, a_n = l == 0 ? 0 : WIDTH;
+      const uint x_row = l == 0 || lskip ? 0 : N_IN;
+      {  // dW_l += dZ_l x input_l over the group's TRAIN_G tiles, DW_RJ x DW_RK blocks.
+        __global const float16* gin = gbuf + (l & 1) * GMAX * HS;
+        __global float16* acc_l = accv + layer_offset(l);
+        for (uint j0 = 0; j0 < nout; j0 += DW_RJ)
+          for (uint k0 = 0; k0 < stride; k0 += DW_RK) {
+            // Rows and columns past the end repeat the last one; their sums are not stored.
+            __global const float16* dp[DW_RJ];
+            __global const float16* ip[DW_RK];
+            float16 a[DW_RJ][DW_RK];
+#pragma unroll
+            for (uint i = 0; i < DW_RJ; ++i) dp[i] = gin + min(j0 + i, nout - 1) * HS;
+#pragma unroll
+            for (uint r = 0; r < DW_RK; ++r) {
+              const uint k = min(k0 + r, stride - 1);
+              ip[r] = rows + (k < a_n ? a_row + k : x_row + (k - a_n)) * HS;
+            }
+#pragma unroll
+            for (uint i = 0; i < DW_RJ; ++i)
+#pragma unroll
+              for (uint r = 0; r < DW_RK; ++r)
+                a[i][r] = acc_l[min(j0 + i, nout - 1) * stride + min(k0 + r, stride - 1)];
+            for (uint u = 0; u < TRAIN_G; ++u) {
+              float16 v[DW_RK];
+#pragma unroll
+              for (uint r = 0; r < DW_RK; ++r) v[r] = ip[r][u];
+#pragma unroll
+              for (uint i = 0; i < DW_RJ; ++i) {
+                const float16 d = dp[i][u];
+#pragma unroll
+                for (uint r = 0; r < DW_RK; ++r) a[i][r] = fma(d, v[r], a[i][r]);
+              }
+            }
+#pragma unroll
+            for (uint i = 0; i < DW_RJ; ++i)
+#pragma unroll
+              for (uint r = 0; r < DW_RK; ++r)
+                if (j0 + i < nout && k0 + r < stride) acc_l[(j0 + i) * stride + k0 + r] = a[i][r];
+          }
+      }
+      // dL/dx (layer 0 and skips) and dZ of layer l - 1, FWD_T tiles at a time.
+      for (uint sg = 0; sg < TRAIN_G / FWD_T; ++sg) {
+        SUB_TILES(sg)
+        __global const float16* gin = gbuf + (l & 1) * GMAX * HS + sg * FWD_T;
+        if (want_dx && (l == 0 || lskip)) {
+          const uint xcol = l == 0 ? 0 : WIDTH;
+          BACK_INPUT(l == TOP_SKIP)
+        }
+        if (l > 0) {
+          __global const float16* hprev = rows + a_row * HS + sg * FWD_T;
+          __global float16* gout = gbuf + ((l + 1) & 1) * GMAX * HS + sg * FWD_T;
+          for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) TRAIN_BACK_BLOCK(BWD_R, k0)
+#if WIDTH % BWD_R
+          TRAIN_BACK_BLOCK(WIDTH % BWD_R, WIDTH - WIDTH % BWD_R)
+#endif
+        }
+      }
+      if (l == 0) break;
+    }
+  }
+  __global float* out = partial + c * (size_t)partial_stride;
+  for (uint i = 0; i < n_params; ++i) out[i] = sum16(accv[i]);
 }

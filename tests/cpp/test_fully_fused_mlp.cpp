@@ -87,10 +87,25 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
   Buffer<float> gbuf(device, params.size());
   Reference ref(*net, params, offset);
 
-  auto ws = net->make_workspace(device);
-  BatchMatrix x(device, 1000, c.n_in), y(device, 1000, c.n_out), dy(device, 1000, c.n_out), dx(device, 1000, c.n_in);
-  for (std::uint32_t batch : {1000u, 100u, 1u}) {
-    SCOPED_TRACE(std::string(c.name) + " batch " + std::to_string(batch));
+  // The device's default register blocking, and others that every device must run alike: the AVX2/GPU and
+  // AVX-512 ones, and odd sizes (3 tiles per work-item, blocks that do not divide the widths), each with the
+  // separate backward kernels and with the fused training kernel (forced for every network size).
+  constexpr std::uint32_t kAlways = 1u << 30;
+  std::vector<std::optional<FullyFusedMLP::Blocking>> blockings = {
+      std::nullopt,
+      FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 16, 0},
+      FullyFusedMLP::Blocking{2, 8, 8, 16, 4, 4, 16, 0},
+      FullyFusedMLP::Blocking{2, 8, 8, 16, 4, 4, 16, kAlways},
+      FullyFusedMLP::Blocking{3, 5, 3, 16, 3, 5, 9, 0, 6},
+      FullyFusedMLP::Blocking{3, 5, 3, 16, 3, 5, 9, kAlways, 3},
+      FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 16, kAlways, 5}};
+  for (const auto& blocking : blockings)
+  for (std::uint32_t batch : {1000u, 100u, 96u, 33u, 1u}) {
+    net->set_blocking(blocking);
+    auto ws = net->make_workspace(device);
+    BatchMatrix x(device, 1000, c.n_in), y(device, 1000, c.n_out), dy(device, 1000, c.n_out), dx(device, 1000, c.n_in);
+    SCOPED_TRACE(std::string(c.name) + " batch " + std::to_string(batch) + " blocking " +
+                 (blocking ? blocking->str() : "default " + net->blocking(device).str()));
     const auto xh = random_vector(std::size_t(batch) * c.n_in, batch + 1);
     // d_output rows beyond the batch hold garbage (16 extra rows): the kernels must ignore them.
     const std::uint32_t garbage_rows = batch < 1000 ? 16 : 0;
@@ -329,6 +344,31 @@ TEST(FullyFusedMLP, BadCallsAreInvalidArguments) {
   auto ws = s.net->make_workspace(s.device);
   Buffer<float> g(s.device, s.params.size());
   EXPECT_THROW(s.net->backward(s.device, {&pbuf, 0}, x5, y, y, {&g, 0}, false, nullptr, *ws), InvalidArgument);
+}
+
+TEST(FullyFusedMLP, BlockingFollowsTheDevice) {
+  DeviceInfo avx512, avx2, gpu;
+  avx512.type = avx2.type = "cpu";
+  gpu.type = "gpu";
+  avx512.preferred_vector_width_float = gpu.preferred_vector_width_float = 16;
+  avx2.preferred_vector_width_float = 8;
+  const auto b512 = FullyFusedMLP::default_blocking(avx512);
+  EXPECT_GT(b512.forward_tiles, 1u);
+  EXPECT_EQ(b512.dw_vector, 16u);
+  EXPECT_GT(b512.fused_train_max_params, 0u);
+  EXPECT_TRUE(FullyFusedMLP::default_blocking(avx2) == FullyFusedMLP::Blocking{});
+  EXPECT_TRUE(FullyFusedMLP::default_blocking(gpu) == FullyFusedMLP::Blocking{});
+
+  Small s;
+  EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{0, 4, 4, 8, 4, 3, 16}), InvalidArgument);
+  EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 12, 4, 3, 16}), InvalidArgument);
+  EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 10}), InvalidArgument);
+  const FullyFusedMLP::Blocking odd{3, 5, 3, 16, 3, 5, 9, 0, 9};
+  EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{2, 4, 4, 8, 4, 3, 16, 0, 5}), InvalidArgument);
+  s.net->set_blocking(odd);
+  EXPECT_TRUE(s.net->blocking(s.device) == odd);
+  s.net->set_blocking(std::nullopt);
+  EXPECT_TRUE(s.net->blocking(s.device) == FullyFusedMLP::default_blocking(s.device.info()));
 }
 
 }  // namespace

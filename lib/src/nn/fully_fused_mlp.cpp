@@ -20,11 +20,6 @@ Activation activation_from_name(const std::string& name) {
   throw InvalidArgument("unknown activation '" + name + "'");
 }
 
-// Register block sizes of the kernels (see kernels/mlp.cl); measured on AVX2 (docs/networks.md).
-constexpr std::uint32_t kForwardBlock = 4;
-constexpr std::uint32_t kWeightGradRows = 4, kWeightGradCols = 3;
-constexpr std::uint32_t kWeightGradRegion = 4 * kWeightGradRows;  // rows of dW per work-item (DW_ROWS)
-
 // Weight-gradient partials: the batch is cut into a few chunks per compute unit (load balance; the partial
 // buffer is chunks x parameters, kept under kMaxPartialFloats), each walked in sub-chunks whose input rows
 // (kSubChunkBytes) stay in a core's L2 + its share of L3 while every register block of the work-item's rows
@@ -55,10 +50,12 @@ class MlpWorkspace final : public Workspace {
  public:
   explicit MlpWorkspace(Device device) : device(std::move(device)) {}
   Device device;
-  std::uint32_t padded = 0;          // batch capacity of act/dz
+  std::uint32_t padded = 0;          // batch capacity of act/dz (0 until forward())
+  bool saved = false;                // forward() saved the activations into act (not for the fused training)
   // Feature-major (row f = feature f of every sample, `padded` floats per row): act holds the rows
   // [x (n_input), ones, h_0 (width), ..., h_(L-1)], dz the rows [dZ_0 (width), ..., dZ_(L-1), dZ_out].
   Buffer<float> act, dz, partial;
+  Buffer<float> scratch;             // the fused training kernel's per-chunk scratch
 };
 
 }  // namespace
@@ -76,9 +73,73 @@ double apply_activation(Activation a, double z) {
   return z;
 }
 
+bool FullyFusedMLP::Blocking::operator==(const Blocking& o) const {
+  return forward_tiles == o.forward_tiles && forward_rows == o.forward_rows && backward_rows == o.backward_rows &&
+         dw_vector == o.dw_vector && dw_rows == o.dw_rows && dw_cols == o.dw_cols && dw_region == o.dw_region &&
+         fused_train_max_params == o.fused_train_max_params && train_group == o.train_group;
+}
+
+std::string FullyFusedMLP::Blocking::str() const {
+  return "T" + std::to_string(forward_tiles) + " R" + std::to_string(forward_rows) + " B" +
+         std::to_string(backward_rows) + " V" + std::to_string(dw_vector) + " " + std::to_string(dw_rows) + "x" +
+         std::to_string(dw_cols) + "/" + std::to_string(dw_region) + " F" + std::to_string(fused_train_max_params) +
+         " G" + std::to_string(train_group);
+}
+
+// Register blocks (kernels/mlp.cl; measurements in docs/networks.md). A work-item's accumulators must fit the
+// vector registers: NR x FWD_T float16 for the forward/backward blocks, DW_RJ x DW_RK vectors for dW.
+//  - AVX2 CPUs and GPUs: one tile per work-item, 4 outputs per block (a float16 is two ymm registers on
+//    AVX2: 8 accumulators of 16), float8 dW accumulators in 4 x 3 blocks.
+//  - AVX-512 CPUs (16-float native vectors, 32 zmm registers): a float16 is one register and two loads per
+//    cycle feed two FMAs, so a block must reuse each load: four tiles per work-item (every weight broadcast
+//    feeds four FMAs) and 6 outputs per block (every activation load feeds six; 24 accumulators), float16 dW
+//    accumulators in 5 x 5 blocks, and the fused training kernel for small networks, whose separate
+//    backward kernels are bound by memory traffic (2-core Zen 5, docs/networks.md).
+FullyFusedMLP::Blocking FullyFusedMLP::default_blocking(const DeviceInfo& info) {
+  Blocking b;
+  if (info.type == "cpu" && info.preferred_vector_width_float >= 16) {
+    b.forward_tiles = 4;
+    b.forward_rows = 6;
+    b.backward_rows = 6;
+    b.dw_vector = 16;
+    b.dw_rows = 5;
+    b.dw_cols = 5;
+    b.dw_region = 20;
+    b.fused_train_max_params = 16384;  // 1 MiB of accumulators per work-item
+    b.train_group = 8;
+  }
+  return b;
+}
+
+void FullyFusedMLP::set_blocking(std::optional<Blocking> blocking) {
+  if (blocking) {
+    const Blocking& b = *blocking;
+    auto check = [](bool ok, const std::string& what) {
+      if (!ok) throw InvalidArgument("FullyFusedMLP::set_blocking: " + what);
+    };
+    check(b.forward_tiles >= 1 && b.forward_tiles <= 4, "forward_tiles must be in [1, 4]");
+    check(b.forward_rows >= 1 && b.forward_rows <= 16, "forward_rows must be in [1, 16]");
+    check(b.backward_rows >= 1 && b.backward_rows <= 16, "backward_rows must be in [1, 16]");
+    check(b.dw_vector == 8 || b.dw_vector == 16, "dw_vector must be 8 or 16");
+    check(b.dw_rows >= 1 && b.dw_rows <= 8 && b.dw_cols >= 1 && b.dw_cols <= 8, "dw_rows, dw_cols must be in [1, 8]");
+    check(b.dw_region >= b.dw_rows && b.dw_region % b.dw_rows == 0, "dw_region must be a multiple of dw_rows");
+    check(b.train_group >= b.forward_tiles && b.train_group <= 64 && b.train_group % b.forward_tiles == 0,
+          "train_group must be a multiple of forward_tiles, at most 64");
+  }
+  std::lock_guard<std::mutex> lock(m_mutex);
+  m_blocking = blocking;
+  m_kernels.clear();
+}
+
+FullyFusedMLP::Blocking FullyFusedMLP::blocking(const Device& device) const {
+  std::lock_guard<std::mutex> lock(m_mutex);
+  return m_blocking ? *m_blocking : default_blocking(device.info());
+}
+
 struct FullyFusedMLP::Kernels {
   Device device;
-  Kernel forward, backward, weight_grad, reduce;
+  Blocking blocking;
+  Kernel forward, backward, weight_grad, reduce, train;
   std::size_t local_forward = 0, local_backward = 0, local_weight_grad = 0, local_reduce = 0;
 };
 
@@ -182,6 +243,7 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
   std::lock_guard<std::mutex> lock(m_mutex);
   for (const auto& k : m_kernels)
     if (k->device == device) return *k;
+  const Blocking b = m_blocking ? *m_blocking : default_blocking(device.info());
   std::uint32_t skip_mask = 0, top_skip = 0;
   for (std::uint32_t l : m_skip_layers) {
     skip_mask |= 1u << l;
@@ -196,15 +258,19 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
       {"SKIP_MASK", std::to_string(skip_mask) + "u"}, {"TOP_SKIP", std::to_string(top_skip)},
       {"HIDDEN_ACT", std::to_string(static_cast<int>(m_hidden_activation))},
       {"OUT_ACTS", acts},                         {"BIAS", m_bias ? "1" : "0"},
-      {"FWD_R", std::to_string(kForwardBlock)},   {"DW_RJ", std::to_string(kWeightGradRows)},
-      {"DW_RK", std::to_string(kWeightGradCols)}, {"DW_ROWS", std::to_string(kWeightGradRegion)}};
+      {"FWD_T", std::to_string(b.forward_tiles)}, {"FWD_R", std::to_string(b.forward_rows)},
+      {"BWD_R", std::to_string(b.backward_rows)}, {"DW_VEC", std::to_string(b.dw_vector)},
+      {"DW_RJ", std::to_string(b.dw_rows)},       {"DW_RK", std::to_string(b.dw_cols)},
+      {"DW_ROWS", std::to_string(b.dw_region)},   {"TRAIN_G", std::to_string(b.train_group)}};
   const Program program = device.program("mlp.cl", defines);
   auto k = std::make_unique<Kernels>();
   k->device = device;
+  k->blocking = b;
   k->forward = program.kernel("mlp_forward");
   k->backward = program.kernel("mlp_backward");
   k->weight_grad = program.kernel("mlp_weight_grad_partial");
   k->reduce = program.kernel("mlp_reduce_chunks");
+  k->train = program.kernel("mlp_train_fused");
   // The preferred multiple is the SIMD/warp width of the device; on a CPU each work-group runs on one core.
   auto local = [](const Kernel& kernel) {
     return std::max<std::size_t>(1, std::min(kernel.preferred_work_group_multiple(), kernel.max_work_group_size()));
@@ -218,6 +284,10 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
 }
 
 void FullyFusedMLP::warm_up(const Device& device) const { kernels(device); }
+
+bool FullyFusedMLP::fused_training(const Device& device) const {
+  return n_params() <= kernels(device).blocking.fused_train_max_params;
+}
 
 void FullyFusedMLP::check_input(const char* what, const BatchMatrix& input) const {
   if (input.cols() != m_n_input)
@@ -244,7 +314,7 @@ void FullyFusedMLP::launch_forward(const Device& device, ConstParamSlice params,
   Kernel kernel = k.forward;
   kernel.args(n_tiles, act_padded, *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(),
               output.data(), act ? *act : output.data(), static_cast<std::uint32_t>(act ? 1 : 0));
-  kernel.launch(n_tiles, k.local_forward);
+  kernel.launch((n_tiles + k.blocking.forward_tiles - 1) / k.blocking.forward_tiles, k.local_forward);
 }
 
 void FullyFusedMLP::inference(const Device& device, ConstParamSlice params, const BatchMatrix& input,
@@ -260,11 +330,18 @@ void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const 
   if (!ws || ws->device != device)
     throw InvalidArgument("FullyFusedMLP::forward: the workspace was not made by this network's make_workspace "
                           "for this device");
-  if (input.padded() > ws->padded) {  // grow only: a training loop reuses its buffers
-    ws->padded = input.padded();
+  if (fused_training(device)) {  // backward() recomputes the activations: nothing to save
+    ws->padded = std::max(ws->padded, input.padded());
+    ws->saved = false;
+    launch_forward(device, params, input, output, nullptr, 0);
+    return;
+  }
+  if (input.padded() > ws->padded || ws->act.empty()) {  // grow only: a training loop reuses its buffers
+    ws->padded = std::max(ws->padded, input.padded());
     ws->act = Buffer<float>(device, std::size_t(ws->padded) * (std::size_t(m_width) * m_n_hidden + m_n_input + 1));
     ws->dz = Buffer<float>(device, std::size_t(ws->padded) * (std::size_t(m_width) * m_n_hidden + m_n_output));
   }
+  ws->saved = true;
   launch_forward(device, params, input, output, &ws->act, ws->padded);
 }
 
@@ -299,13 +376,38 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     return;
   }
 
+  const std::size_t wanted = kChunksPerComputeUnit * std::max(1u, device.info().compute_units);
+  if (fused_training(device)) {
+    // Chunks of whole groups of TRAIN_G tiles, one work-item each (fixed for a given batch and device).
+    const std::uint32_t t = k.blocking.train_group;
+    const std::size_t groups = (n_tiles + t - 1) / t;
+    const std::size_t chunks = std::clamp<std::size_t>(wanted, 1, groups);
+    const std::uint32_t chunk_tiles = static_cast<std::uint32_t>((groups + chunks - 1) / chunks) * t;
+    const std::uint32_t n_chunks = (n_tiles + chunk_tiles - 1) / chunk_tiles;
+    const std::size_t rows = m_n_input + 1 + std::size_t(m_n_hidden) * m_width + 2 * std::max(m_width, m_n_output);
+    const std::size_t stride = round_up(16 * (np + rows * t + m_n_input), 16);
+    if (ws->scratch.size() < n_chunks * stride) ws->scratch = Buffer<float>(device, n_chunks * stride);
+    if (ws->partial.size() < std::size_t(n_chunks) * np) ws->partial = Buffer<float>(device, std::size_t(n_chunks) * np);
+    Kernel tk = k.train;
+    tk.args(n_tiles, batch, chunk_tiles, np, *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(),
+            output.data(), d_output.data(), d_input ? d_input->data() : ws->scratch,
+            static_cast<std::uint32_t>(d_input ? 1 : 0), ws->scratch, static_cast<std::uint32_t>(stride), ws->partial,
+            np);
+    tk.launch(n_chunks, 1);
+    Kernel rk = k.reduce;
+    rk.args(np, n_chunks, ws->partial, np, *grads.buffer, static_cast<std::uint32_t>(grads.offset),
+            static_cast<std::uint32_t>(accumulate ? 1 : 0));
+    rk.launch((np + 7) / 8, k.local_reduce);
+    return;
+  }
+  if (!ws->saved) throw InvalidArgument("FullyFusedMLP::backward: call forward() with this workspace and batch first");
+
   // Chunks of the batch for the weight-gradient partials (fixed for a given batch and device: reproducible).
   std::uint32_t max_in = 0;
   for (std::uint32_t l = 0; l <= m_n_hidden; ++l) max_in = std::max(max_in, layer_inputs(l) + 1);
   ChunkPlan plan;
   plan.n_samples = n_tiles * kBatchTile;
   const std::size_t budget = std::max<std::size_t>(1, kMaxPartialFloats / np);
-  const std::size_t wanted = kChunksPerComputeUnit * std::max(1u, device.info().compute_units);
   const std::size_t chunks = std::clamp<std::size_t>(std::min(wanted, budget), 1, n_tiles);
   plan.chunk_len = static_cast<std::uint32_t>((n_tiles + chunks - 1) / chunks) * kBatchTile;
   plan.n_chunks = (plan.n_samples + plan.chunk_len - 1) / plan.chunk_len;
@@ -320,14 +422,14 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
   bk.args(n_tiles, ws->padded, batch, *params.buffer, static_cast<std::uint32_t>(params.offset), output.data(),
           d_output.data(), ws->act, ws->dz, d_input ? d_input->data() : ws->dz,
           static_cast<std::uint32_t>(d_input ? 1 : 0));
-  bk.launch(n_tiles, k.local_backward);
+  bk.launch((n_tiles + k.blocking.forward_tiles - 1) / k.blocking.forward_tiles, k.local_backward);
 
   // 2. Per-chunk partial weight gradients, layer by layer, into one [chunk][param] buffer.
   Kernel wk = k.weight_grad;
   for (std::uint32_t l = 0; l <= m_n_hidden; ++l) {
     const std::uint32_t n_out = layer_outputs(l);
     const std::uint32_t a_n = l == 0 ? 0 : m_width;
-    const std::uint32_t regions = (n_out + kWeightGradRegion - 1) / kWeightGradRegion;
+    const std::uint32_t regions = (n_out + k.blocking.dw_region - 1) / k.blocking.dw_region;
     const std::uint32_t x_row = l == 0 || has_skip(l) ? 0 : m_n_input;  // x rows then the ones row
     const std::uint32_t x_n = (l == 0 || has_skip(l) ? m_n_input : 0) + (m_bias ? 1 : 0);
     wk.args(plan.n_samples, plan.chunk_len, plan.n_chunks, plan.sub, ws->padded, ws->dz, l * m_width, n_out,

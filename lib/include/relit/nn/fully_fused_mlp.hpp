@@ -13,13 +13,18 @@
 //
 // Parameter layout (see docs/networks.md): layer after layer, each a row-major [n_out][n_in + bias] matrix
 // (PyTorch's nn.Linear weight with the bias appended as the last column). Weight gradients are reduced in a
-// fixed order (no atomics): results are bit-for-bit reproducible on one device.
+// fixed order (no atomics): results are bit-for-bit reproducible on one device (for one Blocking).
+//
+// backward() must be given the input and output of the forward() call on the same workspace, unchanged: on
+// CPUs with AVX-512 small networks train with one fused kernel that recomputes the activations from the
+// input instead of saving them (docs/networks.md).
 #pragma once
 
 #include <relit/nn/module.hpp>
 
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -82,6 +87,36 @@ class FullyFusedMLP final : public Network {
   /// Builds (or fetches from the device's cache) the kernels once, so the first call is not slow.
   void warm_up(const Device& device) const;
 
+  /// Register blocking of the kernels (the -D parameters of kernels/mlp.cl). Any valid blocking gives the
+  /// same results up to float rounding; it only changes the speed.
+  struct Blocking {
+    std::uint32_t forward_tiles = 1;  ///< FWD_T: 16-sample tiles per work-item (forward and backward), 1..4
+    std::uint32_t forward_rows = 4;   ///< FWD_R: outputs per register block of the forward pass, 1..16
+    std::uint32_t backward_rows = 4;  ///< BWD_R: inputs per register block of the backward pass, 1..16
+    std::uint32_t dw_vector = 8;      ///< DW_VEC: samples per weight-gradient accumulator, 8 or 16
+    std::uint32_t dw_rows = 4;        ///< DW_RJ: dW rows per register block, 1..8
+    std::uint32_t dw_cols = 3;        ///< DW_RK: dW columns per register block, 1..8
+    std::uint32_t dw_region = 16;     ///< DW_ROWS: dW rows per work-item, a multiple of dw_rows
+    /// The fused training kernel (mlp_train_fused: one work-item per batch chunk, forward recomputed, float16
+    /// dW accumulators for every parameter in the work-item's scratch) runs backward() when the network has at
+    /// most this many parameters; 0: never (the separate backward and weight-gradient kernels). For CPUs,
+    /// where the accumulators (64 bytes per parameter) must stay in a core's cache.
+    std::uint32_t fused_train_max_params = 0;
+    std::uint32_t train_group = 8;  ///< TRAIN_G: tiles per group of the fused training kernel, a multiple of forward_tiles
+    bool operator==(const Blocking& o) const;
+    std::string str() const;  ///< "T2 R8 B8 V16 4x4/16 F16384 G8"
+  };
+  /// The blocking for a device: AVX-512 CPUs (16-float native vectors) get wider blocks than AVX2 CPUs and
+  /// GPUs (docs/networks.md).
+  static Blocking default_blocking(const DeviceInfo& info);
+  /// Replaces the device default for kernels built from now on (tests, tuning); std::nullopt restores it.
+  /// Throws InvalidArgument on values out of range.
+  void set_blocking(std::optional<Blocking> blocking);
+  /// The blocking the kernels use (or will use) on `device`.
+  Blocking blocking(const Device& device) const;
+  /// Whether backward() runs the fused training kernel on `device` (see Blocking::fused_train_max_params).
+  bool fused_training(const Device& device) const;
+
  private:
   struct Kernels;
   const Kernels& kernels(const Device& device) const;
@@ -96,6 +131,7 @@ class FullyFusedMLP final : public Network {
   std::vector<std::uint32_t> m_skip_layers;
   Json m_hyperparams;
 
+  std::optional<Blocking> m_blocking;  // set_blocking()
   mutable std::mutex m_mutex;
   mutable std::vector<std::unique_ptr<Kernels>> m_kernels;  // one set per device
 };
