@@ -291,36 +291,49 @@ std::vector<float> to_row_major_batch(const Eigen::MatrixXf& m) {  // [features]
   return v;
 }
 
+// A benchmark's inputs and the double reference of their first nv samples.
+struct BenchData {
+  std::vector<float> params, xh, dyh;  // parameters (non-zero biases), x and dL/dy of the whole batch
+  std::vector<float> xv, dyv;          // the verification batch: the first nv samples
+  std::vector<double> want_y, want_dp, want_dx;
+  std::uint32_t n = 0, nv = 0;
+};
+
+BenchData bench_data(const FullyFusedMLP& net, const NetSpec& spec, std::uint32_t max_verify) {
+  BenchData d;
+  d.params.resize(net.n_params());
+  net.initialize_params(d.params.data(), 1);
+  {  // non-zero biases, so every variant's bias handling is verified
+    auto r = random_vector(d.params.size(), 2, -0.1f, 0.1f);
+    for (std::uint32_t l = 0; l <= net.n_hidden_layers(); ++l)
+      for (std::uint32_t j = 0; j < net.layer_outputs(l); ++j) {
+        const std::size_t i = net.layer_offset(l) + std::size_t(j) * (net.layer_inputs(l) + 1) + net.layer_inputs(l);
+        d.params[i] = r[i];
+      }
+  }
+  d.n = spec.batch;
+  d.nv = std::min(d.n, max_verify);
+  d.xh = random_vector(std::size_t(d.n) * spec.n_in, 3);
+  d.dyh = random_vector(std::size_t(d.n) * spec.n_out, 4, -1e-3f, 1e-3f);
+  reference::MlpReference ref(net, d.params);
+  d.xv.assign(d.xh.begin(), d.xh.begin() + std::size_t(d.nv) * spec.n_in);
+  d.dyv.assign(d.dyh.begin(), d.dyh.begin() + std::size_t(d.nv) * spec.n_out);
+  const reference::Mat xm = reference::to_mat(d.xv, d.nv, spec.n_in);
+  d.want_y = reference::flatten(ref.forward(xm));
+  reference::Mat dxm;
+  ref.backward(xm, reference::to_mat(d.dyv, d.nv, spec.n_out), d.want_dp, dxm);
+  d.want_dx = reference::flatten(dxm);
+  return d;
+}
+
 NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o) {
   std::printf("\n%s: %u -> %u x %u -> %u, batch %u\n", spec.name.c_str(), spec.n_in, spec.n_hidden, spec.width, spec.n_out,
               spec.batch);
   auto base = create_network({{"n_neurons", spec.width}, {"n_hidden_layers", spec.n_hidden}}, spec.n_in, spec.n_out);
   const auto& net = dynamic_cast<const FullyFusedMLP&>(*base);
   NetResult result{spec, net.flops_per_sample(), {}};
-  std::vector<float> params(net.n_params());
-  net.initialize_params(params.data(), 1);
-  {  // non-zero biases, so every variant's bias handling is verified
-    auto r = random_vector(params.size(), 2, -0.1f, 0.1f);
-    for (std::uint32_t l = 0; l <= net.n_hidden_layers(); ++l)
-      for (std::uint32_t j = 0; j < net.layer_outputs(l); ++j) {
-        const std::size_t i = net.layer_offset(l) + std::size_t(j) * (net.layer_inputs(l) + 1) + net.layer_inputs(l);
-        params[i] = r[i];
-      }
-  }
-  const std::uint32_t n = spec.batch, nv = std::min<std::uint32_t>(n, o.smoke ? 200 : 1024);
-  const auto xh = random_vector(std::size_t(n) * spec.n_in, 3);
-  const auto dyh = random_vector(std::size_t(n) * spec.n_out, 4, -1e-3f, 1e-3f);
-
-  // Reference on the verification batch (the first nv samples).
-  reference::MlpReference ref(net, params);
-  const std::vector<float> xv(xh.begin(), xh.begin() + std::size_t(nv) * spec.n_in);
-  const std::vector<float> dyv(dyh.begin(), dyh.begin() + std::size_t(nv) * spec.n_out);
-  const reference::Mat xm = reference::to_mat(xv, nv, spec.n_in);
-  const auto want_y = reference::flatten(ref.forward(xm));
-  std::vector<double> want_dp;
-  reference::Mat dxm;
-  ref.backward(xm, reference::to_mat(dyv, nv, spec.n_out), want_dp, dxm);
-  const auto want_dx = reference::flatten(dxm);
+  const BenchData data = bench_data(net, spec, o.smoke ? 200 : 1024);
+  const auto& [params, xh, dyh, xv, dyv, want_y, want_dp, want_dx, n, nv] = data;
 
   Buffer<float> pbuf(device, params), gbuf(device, params.size());
   // ---- fused ----
@@ -461,28 +474,8 @@ void tune_net(const Device& device, const NetSpec& spec, const Options& o, doubl
     dynamic_cast<FullyFusedMLP&>(*nets.back()).set_blocking(b);
   }
   const auto& net0 = dynamic_cast<const FullyFusedMLP&>(*nets[0]);
-  std::vector<float> params(net0.n_params());
-  net0.initialize_params(params.data(), 1);
-  {  // non-zero biases, as bench_net
-    auto r = random_vector(params.size(), 2, -0.1f, 0.1f);
-    for (std::uint32_t l = 0; l <= net0.n_hidden_layers(); ++l)
-      for (std::uint32_t j = 0; j < net0.layer_outputs(l); ++j) {
-        const std::size_t i = net0.layer_offset(l) + std::size_t(j) * (net0.layer_inputs(l) + 1) + net0.layer_inputs(l);
-        params[i] = r[i];
-      }
-  }
-  const std::uint32_t n = spec.batch, nv = std::min<std::uint32_t>(n, 1024);
-  const auto xh = random_vector(std::size_t(n) * spec.n_in, 3);
-  const auto dyh = random_vector(std::size_t(n) * spec.n_out, 4, -1e-3f, 1e-3f);
-  reference::MlpReference ref(net0, params);
-  const std::vector<float> xv(xh.begin(), xh.begin() + std::size_t(nv) * spec.n_in);
-  const std::vector<float> dyv(dyh.begin(), dyh.begin() + std::size_t(nv) * spec.n_out);
-  const reference::Mat xm = reference::to_mat(xv, nv, spec.n_in);
-  const auto want_y = reference::flatten(ref.forward(xm));
-  std::vector<double> want_dp;
-  reference::Mat dxm;
-  ref.backward(xm, reference::to_mat(dyv, nv, spec.n_out), want_dp, dxm);
-  const auto want_dx = reference::flatten(dxm);
+  const BenchData data = bench_data(net0, spec, 1024);
+  const auto& [params, xh, dyh, xv, dyv, want_y, want_dp, want_dx, n, nv] = data;
   Buffer<float> pbuf(device, params), gbuf(device, params.size());
   BatchMatrix x(device, n, spec.n_in), y(device, n, spec.n_out), dy(device, n, spec.n_out), dx(device, n, spec.n_in);
   std::vector<std::unique_ptr<Workspace>> ws;
@@ -543,7 +536,8 @@ int main(int argc, char** argv) {
     else if (a == "--reps" && i + 1 < argc) o.reps = std::max(1, std::atoi(argv[++i]));
     else if (a == "--blockings" && i + 1 < argc) o.blockings = argv[++i];
     else {
-      std::fprintf(stderr, "usage: bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants fused,eigen,clblast]\n");
+      std::fprintf(stderr, "usage: bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants fused,eigen,clblast] "
+                           "[--blockings \"T,R,B,V,RJ,RK,ROWS[,F[,G]];...\"]\n");
       return 2;
     }
   }

@@ -273,8 +273,9 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 
 #define SRC_G(j, u) gin[(j) * HS + (u)]
 
-// NR inputs k0.. of dL/dh_(l-1) = W_l^T dZ_l, masked by the activation derivative of h_(l-1).
-#define BACK_HIDDEN_BLOCK(NR, k0)                                                              \
+// NR inputs k0.. of dL/dh_(l-1) = W_l^T dZ_l, masked by the activation derivative of h_(l-1), into gout.
+// H(k, u): h_(l-1) of input k in tile u; SAVE(k, u, g) stores the result elsewhere too.
+#define BACK_MASKED_BLOCK(NR, k0, H, SAVE)                                                     \
   {                                                                                            \
     float16 acc[NR][FWD_T];                                                                    \
     INIT_ZERO(acc, NR)                                                                         \
@@ -282,12 +283,16 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
     _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
       _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                     \
         float16 g = acc[r][u];                                                                 \
-        const size_t o_ = ((k0) + r) * (size_t)padded + tile[u] * TILE;                       \
-        if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, vload16(0, at + o_) > 0.0f);  \
+        if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, H((k0) + r, u) > 0.0f);       \
         gout[((k0) + r) * HS + u] = g;                                                         \
-        vstore16(g, 0, dzt + o_);                                                              \
+        SAVE((k0) + r, u, g);                                                                  \
       }                                                                                        \
   }
+
+// The separate backward kernel: h_(l-1) from the saved activations, dZ stored for the weight gradients.
+#define H_SAVED(k, u) vload16(0, at + (k) * (size_t)padded + tile[u] * TILE)
+#define SAVE_DZ(k, u, g) vstore16(g, 0, dzt + (k) * (size_t)padded + tile[u] * TILE)
+#define BACK_HIDDEN_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, H_SAVED, SAVE_DZ)
 
 // NR inputs k0.. of dL/dx from the input columns starting at column `xcol` of layer w (layer 0 or a skip).
 #define BACK_INPUT_BLOCK(NR, k0)                                                               \
@@ -526,19 +531,10 @@ inline float sum16(float16 v) {
   return s2.x + s2.y;
 }
 
-// dL/dh_(l-1) for NR inputs k0..: W_l^T dZ_l masked by the ReLU of h_(l-1) (scratch rows), into gout.
-#define TRAIN_BACK_BLOCK(NR, k0)                                                               \
-  {                                                                                            \
-    float16 acc[NR][FWD_T];                                                                    \
-    INIT_ZERO(acc, NR)                                                                         \
-    ACCUM_T(acc, NR, SRC_G, nout, w, stride, k0)                                               \
-    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
-      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                     \
-        float16 g = acc[r][u];                                                                 \
-        if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, hprev[((k0) + r) * HS + u] > 0.0f); \
-        gout[((k0) + r) * HS + u] = g;                                                         \
-      }                                                                                        \
-  }
+// The fused training kernel: h_(l-1) from the scratch rows (hprev), dZ kept in gout only.
+#define H_SCRATCH(k, u) hprev[(k) * HS + (u)]
+#define SAVE_NONE(k, u, g)
+#define TRAIN_BACK_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, H_SCRATCH, SAVE_NONE)
 
 // The FWD_T tiles of sub-group s of the group starting at tile tb: tile indices (clamped to the chunk), x
 // and dL/dx pointers (the sink for tiles past the chunk's end).

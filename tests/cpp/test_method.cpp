@@ -29,6 +29,18 @@ struct Scene1 {
   PointLight light{{2.0f, -2.0f, 3.0f}, {500.0f, 400.0f, 300.0f}};
 };
 
+// The 16 rays of Scene1's image and K = 8 indirect directions with their SH basis up to `sh_lmax`, drawn once.
+struct TinyBatch {
+  static constexpr std::uint32_t n = 16;
+  Buffer<float> rays;
+  render::IndirectBasis basis;
+  TinyBatch(const Device& dev, int sh_lmax = 1) : rays(dev, std::size_t(n) * render::kRayFloats), basis(dev, 8, sh_lmax) {
+    const Scene1 sc;
+    render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
+    basis.draw(1, 0);
+  }
+};
+
 Json tiny_env_model(const std::string& sh = "1") {
   Json m = tiny_model(sh);
   m["environment"] = {{"enabled", true},
@@ -57,13 +69,11 @@ double weighted_colour(method::Ours& model, method::OursPass& pass, Buffer<float
 // random parameters (`from`: the first parameter that may be picked at random).
 void check_gradients(method::Ours& model, const render::EnvironmentSamples* env, std::size_t from = 0) {
   const Device& dev = model.device();
-  Scene1 sc;
-  const std::uint32_t n = 16;
-  Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
-  render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
+  TinyBatch batch(dev, model.settings().renderer.sh_lmax);
+  const std::uint32_t n = batch.n;
+  Buffer<float>& rays = batch.rays;
+  render::IndirectBasis& basis = batch.basis;
   if (env) env->fill_background(rays, n);
-  render::IndirectBasis basis(dev, 8, model.settings().renderer.sh_lmax);
-  basis.draw(1, 0);
   method::OursPass pass;
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
@@ -132,34 +142,32 @@ TEST(Method, EnvironmentRenderGradientMatchesFiniteDifferences) {
 TEST(Method, GradientsAreIsolatedBothWays) {
   const Device dev = test::test_device();
   for (const bool visibility_input : {false, true}) {
-  SCOPED_TRACE(visibility_input ? "SH head sees V" : "SH head without V");
-  Json config = tiny_model();
-  config["indirect"]["visibility_input"] = visibility_input;
-  method::Ours model(dev, config);
-  Scene1 sc;
-  const std::uint32_t n = 16;
-  Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
-  render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
-  render::IndirectBasis basis(dev, 8, 1);
-  basis.draw(1, 0);
-  method::OursPass pass;
-  model.refresh_density_grid();
-  model.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis());
-  // The render loss does not reach the visibility network...
-  model.vis_grads().fill(123.0f);
-  Buffer<float> d_color(dev, std::vector<float>(3 * n, 1.0f));
-  model.backward(pass, rays, basis.dirs(), basis.basis(), d_color);
-  for (float g : model.vis_grads().read()) ASSERT_EQ(g, 123.0f);
-  // ...and the visibility loss does not reach θ, while it does reach ψ.
-  model.grads().fill(-7.0f);
-  auto loss = nn::create_loss({{"type", "L2"}});
-  Buffer<float> value(dev, 1);
-  model.visibility_step(pass, rays, *loss, value);
-  for (float g : model.grads().read()) ASSERT_EQ(g, -7.0f);
-  double norm = 0;
-  for (float g : model.vis_grads().read()) norm += std::fabs(g);
-  EXPECT_GT(norm, 0.0);
-  EXPECT_TRUE(std::isfinite(value.read()[0]));
+    SCOPED_TRACE(visibility_input ? "SH head sees V" : "SH head without V");
+    Json config = tiny_model();
+    config["indirect"]["visibility_input"] = visibility_input;
+    method::Ours model(dev, config);
+    TinyBatch batch(dev);
+    const std::uint32_t n = batch.n;
+    Buffer<float>& rays = batch.rays;
+    const render::IndirectBasis& basis = batch.basis;
+    method::OursPass pass;
+    model.refresh_density_grid();
+    model.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis());
+    // The render loss does not reach the visibility network...
+    model.vis_grads().fill(123.0f);
+    Buffer<float> d_color(dev, std::vector<float>(3 * n, 1.0f));
+    model.backward(pass, rays, basis.dirs(), basis.basis(), d_color);
+    for (float g : model.vis_grads().read()) ASSERT_EQ(g, 123.0f);
+    // ...and the visibility loss does not reach θ, while it does reach ψ.
+    model.grads().fill(-7.0f);
+    auto loss = nn::create_loss({{"type", "L2"}});
+    Buffer<float> value(dev, 1);
+    model.visibility_step(pass, rays, *loss, value);
+    for (float g : model.grads().read()) ASSERT_EQ(g, -7.0f);
+    double norm = 0;
+    for (float g : model.vis_grads().read()) norm += std::fabs(g);
+    EXPECT_GT(norm, 0.0);
+    EXPECT_TRUE(std::isfinite(value.read()[0]));
   }
 }
 
@@ -177,12 +185,10 @@ TEST(Method, IndirectHeadCanSeeTheVisibility) {
   EXPECT_EQ(without.indirect_network().n_input_dims(), without.settings().n_features + 3);
   with.initialize(2);
   with.refresh_density_grid();
-  Scene1 sc;
-  const std::uint32_t n = 16;
-  Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
-  render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
-  render::IndirectBasis basis(dev, 8, 1);
-  basis.draw(1, 0);
+  TinyBatch batch(dev);
+  const std::uint32_t n = batch.n;
+  Buffer<float>& rays = batch.rays;
+  const render::IndirectBasis& basis = batch.basis;
   for (const bool march : {false, true}) {
     method::OursPass pass;
     with.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis(), march);

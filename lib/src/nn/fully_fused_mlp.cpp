@@ -133,6 +133,10 @@ void FullyFusedMLP::set_blocking(std::optional<Blocking> blocking) {
 
 FullyFusedMLP::Blocking FullyFusedMLP::blocking(const Device& device) const {
   std::lock_guard<std::mutex> lock(m_mutex);
+  return blocking_locked(device);
+}
+
+FullyFusedMLP::Blocking FullyFusedMLP::blocking_locked(const Device& device) const {
   return m_blocking ? *m_blocking : default_blocking(device.info());
 }
 
@@ -243,7 +247,7 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
   std::lock_guard<std::mutex> lock(m_mutex);
   for (const auto& k : m_kernels)
     if (k->device == device) return *k;
-  const Blocking b = m_blocking ? *m_blocking : default_blocking(device.info());
+  const Blocking b = blocking_locked(device);
   std::uint32_t skip_mask = 0, top_skip = 0;
   for (std::uint32_t l : m_skip_layers) {
     skip_mask |= 1u << l;
@@ -377,6 +381,13 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
   }
 
   const std::size_t wanted = kChunksPerComputeUnit * std::max(1u, device.info().compute_units);
+  // The per-chunk partials in ws->partial, summed over chunks in a fixed order into the gradient slice.
+  auto reduce_chunks = [&](std::uint32_t n_chunks) {
+    Kernel rk = k.reduce;
+    rk.args(np, n_chunks, ws->partial, np, *grads.buffer, static_cast<std::uint32_t>(grads.offset),
+            static_cast<std::uint32_t>(accumulate ? 1 : 0));
+    rk.launch((np + 7) / 8, k.local_reduce);
+  };
   if (fused_training(device)) {
     // Chunks of whole groups of TRAIN_G tiles, one work-item each (fixed for a given batch and device).
     const std::uint32_t t = k.blocking.train_group;
@@ -394,10 +405,7 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
             static_cast<std::uint32_t>(d_input ? 1 : 0), ws->scratch, static_cast<std::uint32_t>(stride), ws->partial,
             np);
     tk.launch(n_chunks, 1);
-    Kernel rk = k.reduce;
-    rk.args(np, n_chunks, ws->partial, np, *grads.buffer, static_cast<std::uint32_t>(grads.offset),
-            static_cast<std::uint32_t>(accumulate ? 1 : 0));
-    rk.launch((np + 7) / 8, k.local_reduce);
+    reduce_chunks(n_chunks);
     return;
   }
   if (!ws->saved) throw InvalidArgument("FullyFusedMLP::backward: call forward() with this workspace and batch first");
@@ -443,10 +451,7 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
   }
 
   // 3. Fixed-order sum over chunks into the gradient slice.
-  Kernel rk = k.reduce;
-  rk.args(np, plan.n_chunks, ws->partial, np, *grads.buffer, static_cast<std::uint32_t>(grads.offset),
-          static_cast<std::uint32_t>(accumulate ? 1 : 0));
-  rk.launch((np + 7) / 8, k.local_reduce);
+  reduce_chunks(plan.n_chunks);
 }
 
 }  // namespace relit::nn

@@ -120,6 +120,7 @@ class FullyFusedMLP final : public Network {
  private:
   struct Kernels;
   const Kernels& kernels(const Device& device) const;
+  Blocking blocking_locked(const Device& device) const;  // blocking(), with m_mutex held
   void launch_forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
                       Buffer<float>* act, std::uint32_t act_padded) const;
   void check_input(const char* what, const BatchMatrix& input) const;
