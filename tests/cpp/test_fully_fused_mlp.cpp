@@ -99,44 +99,52 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
       FullyFusedMLP::Blocking{3, 5, 3, 16, 3, 5, 9, 0, 6},
       FullyFusedMLP::Blocking{3, 5, 3, 16, 3, 5, 9, kAlways, 3},
       FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 16, kAlways, 5}};
-  for (const auto& blocking : blockings)
+  // Inputs and the double reference per batch size (d_output rows beyond the batch hold garbage, 16 extra
+  // rows: the kernels must ignore them).
+  struct BatchCase {
+    std::uint32_t batch, garbage_rows;
+    std::vector<float> xh, dyh;
+    Mat want_y, want_dx;
+    std::vector<double> want_dp;
+  };
+  std::vector<BatchCase> batches;
   for (std::uint32_t batch : {1000u, 100u, 96u, 33u, 1u}) {
+    BatchCase b{batch, batch < 1000 ? 16u : 0u, random_vector(std::size_t(batch) * c.n_in, batch + 1), {}, {}, {}, {}};
+    b.dyh = random_vector(std::size_t(batch + b.garbage_rows) * c.n_out, batch + 2);
+    for (std::size_t i = std::size_t(batch) * c.n_out; i < b.dyh.size(); ++i) b.dyh[i] = 1e3f;
+    const Mat xm = to_mat(b.xh, batch, c.n_in);
+    b.want_y = ref.forward(xm);
+    ref.backward(xm, to_mat(b.dyh, batch, c.n_out), b.want_dp, b.want_dx);
+    batches.push_back(std::move(b));
+  }
+  for (const auto& blocking : blockings) {
     net->set_blocking(blocking);
+    // One workspace and one set of matrices for every batch size: sized by the first, reused by the smaller.
     auto ws = net->make_workspace(device);
     BatchMatrix x(device, 1000, c.n_in), y(device, 1000, c.n_out), dy(device, 1000, c.n_out), dx(device, 1000, c.n_in);
-    SCOPED_TRACE(std::string(c.name) + " batch " + std::to_string(batch) + " blocking " +
-                 (blocking ? blocking->str() : "default " + net->blocking(device).str()));
-    const auto xh = random_vector(std::size_t(batch) * c.n_in, batch + 1);
-    // d_output rows beyond the batch hold garbage (16 extra rows): the kernels must ignore them.
-    const std::uint32_t garbage_rows = batch < 1000 ? 16 : 0;
-    auto dyh = random_vector(std::size_t(batch + garbage_rows) * c.n_out, batch + 2);
-    for (std::size_t i = std::size_t(batch) * c.n_out; i < dyh.size(); ++i) dyh[i] = 1e3f;
-    x.resize(batch);
-    x.upload_row_major(xh);
-    dy.resize(batch + garbage_rows);
-    dy.upload_row_major(dyh);
-    dy.resize(batch);
-    dyh.resize(std::size_t(batch) * c.n_out);
+    for (const BatchCase& b : batches) {
+      SCOPED_TRACE(std::string(c.name) + " batch " + std::to_string(b.batch) + " blocking " +
+                   (blocking ? blocking->str() : "default " + net->blocking(device).str()));
+      x.resize(b.batch);
+      x.upload_row_major(b.xh);
+      dy.resize(b.batch + b.garbage_rows);
+      dy.upload_row_major(b.dyh);
+      dy.resize(b.batch);
 
-    const Mat xm = to_mat(xh, batch, c.n_in);
-    const Mat want_y = ref.forward(xm);
-    std::vector<double> want_dp;
-    Mat want_dx;
-    ref.backward(xm, to_mat(dyh, batch, c.n_out), want_dp, want_dx);
+      BatchMatrix yi(device, 1, c.n_out);
+      net->inference(device, {&pbuf, offset}, x, yi);
+      EXPECT_LE(worst_ratio(yi.download_row_major(), flatten(b.want_y), 1e-5), 1.0) << "inference";
 
-    BatchMatrix yi(device, 1, c.n_out);
-    net->inference(device, {&pbuf, offset}, x, yi);
-    EXPECT_LE(worst_ratio(yi.download_row_major(), flatten(want_y), 1e-5), 1.0) << "inference";
+      net->forward(device, {&pbuf, offset}, x, y, *ws);
+      EXPECT_LE(worst_ratio(y.download_row_major(), flatten(b.want_y), 1e-5), 1.0) << "training forward";
 
-    net->forward(device, {&pbuf, offset}, x, y, *ws);
-    EXPECT_LE(worst_ratio(y.download_row_major(), flatten(want_y), 1e-5), 1.0) << "training forward";
-
-    gbuf.fill(std::nanf(""));  // overwritten (accumulate = false), outside the slice untouched
-    net->backward(device, {&pbuf, offset}, x, y, dy, {&gbuf, offset}, false, &dx, *ws);
-    const auto g = gbuf.read();
-    EXPECT_LE(worst_ratio(g.data() + offset, want_dp, 1e-4), 1.0) << "dL/dparams";
-    EXPECT_TRUE(std::isnan(g[offset - 1]) && std::isnan(g[offset + np])) << "wrote outside its gradient slice";
-    EXPECT_LE(worst_ratio(dx.download_row_major(), flatten(want_dx), 1e-4), 1.0) << "dL/dinput";
+      gbuf.fill(std::nanf(""));  // overwritten (accumulate = false), outside the slice untouched
+      net->backward(device, {&pbuf, offset}, x, y, dy, {&gbuf, offset}, false, &dx, *ws);
+      const auto g = gbuf.read();
+      EXPECT_LE(worst_ratio(g.data() + offset, b.want_dp, 1e-4), 1.0) << "dL/dparams";
+      EXPECT_TRUE(std::isnan(g[offset - 1]) && std::isnan(g[offset + np])) << "wrote outside its gradient slice";
+      EXPECT_LE(worst_ratio(dx.download_row_major(), flatten(b.want_dx), 1e-4), 1.0) << "dL/dinput";
+    }
   }
 }
 
