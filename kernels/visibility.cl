@@ -15,8 +15,8 @@
 #endif
 #define RAY_FLOATS 20
 
-// exp(-optical depth) from x along unit w up to `max_distance` or the exit of the box, whichever is nearer.
-inline float march_transmittance(__global const float* grid, int4 dims, float3 x, float3 w, float max_distance) {
+// Optical depth from x along unit w up to `max_distance` or the exit of the box, whichever is nearer.
+inline float march_depth(__global const float* grid, int4 dims, float3 x, float3 w, float max_distance) {
   float t0, t1;
   float d = 0.0f;
   if (box_intersect(x, w, &t0, &t1)) d = fmin(t1, max_distance) - fmax(t0, 0.0f);
@@ -27,7 +27,7 @@ inline float march_transmittance(__global const float* grid, int4 dims, float3 x
     for (int j = 0; j < MARCH_STEPS; ++j) tau += grid_lookup(grid, dims, fma(start + (j + 0.5f) * dt, w, x));
     tau *= dt;
   }
-  return exp(-tau);
+  return tau;
 }
 
 inline float3 tiled_position(__global const float* positions, uint s) {
@@ -36,17 +36,18 @@ inline float3 tiled_position(__global const float* positions, uint s) {
                   positions[(tile * 3 + 2) * 16 + lane]);
 }
 
-// One work-item per sample: V toward the light of the sample's ray (visibility: n x 1 tiled).
+// One work-item per sample: V toward the light of the sample's ray (visibility: n x 1 tiled), or with
+// depth_scale k != 1 exp(-k tau), tau the optical depth (the SH head's optical-depth input).
 __kernel void march_to_light(const uint n, __global const float* restrict positions, __global const float* restrict rays,
                              __global const float* restrict grid, const int nx, const int ny, const int nz,
-                             __global float* restrict visibility) {
+                             const float depth_scale, __global float* restrict visibility) {
   const uint s = get_global_id(0);
   if (s >= n) return;
   const float3 x = tiled_position(positions, s);
   __global const float* ray = rays + (size_t)(s / N_SAMPLES) * RAY_FLOATS;
   const float3 to_light = (float3)(ray[8], ray[9], ray[10]) - x;
   const float light_distance = length(to_light);
-  visibility[s] = march_transmittance(grid, (int4)(nx, ny, nz, 0), x, to_light / light_distance, light_distance);
+  visibility[s] = exp(-depth_scale * march_depth(grid, (int4)(nx, ny, nz, 0), x, to_light / light_distance, light_distance));
 }
 
 // Trilinear lookup (as grid_lookup) at 16 points at once: the coordinate math runs on float16 lanes, the 8

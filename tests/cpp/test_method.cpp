@@ -115,11 +115,12 @@ void check_gradients(method::Ours& model, const render::EnvironmentSamples* env,
 
 TEST(Method, RenderGradientMatchesFiniteDifferencesEndToEnd) {
   const Device dev = test::test_device();
-  for (const std::string sh : {"none", "1", "1 closed form", "1 visibility input"}) {
+  for (const std::string sh : {"none", "1", "1 closed form", "1 visibility input", "1 optical depth input"}) {
     SCOPED_TRACE("sh " + sh);
     Json config = tiny_model(sh.substr(0, sh.find(' ')));
     config["renderer"]["closed_form_indirect"] = sh.find("closed") != std::string::npos;
     if (sh.find("visibility") != std::string::npos) config["indirect"]["visibility_input"] = true;
+    if (sh.find("depth") != std::string::npos) config["indirect"]["optical_depth_input"] = 0.25;
     method::Ours model(dev, config);
     model.initialize(11);
     check_gradients(model, nullptr);
@@ -141,10 +142,11 @@ TEST(Method, EnvironmentRenderGradientMatchesFiniteDifferences) {
 
 TEST(Method, GradientsAreIsolatedBothWays) {
   const Device dev = test::test_device();
-  for (const bool visibility_input : {false, true}) {
-    SCOPED_TRACE(visibility_input ? "SH head sees V" : "SH head without V");
+  for (const bool extra_inputs : {false, true}) {
+    SCOPED_TRACE(extra_inputs ? "SH head sees V and the optical depth" : "SH head without V");
     Json config = tiny_model();
-    config["indirect"]["visibility_input"] = visibility_input;
+    config["indirect"]["visibility_input"] = extra_inputs;
+    if (extra_inputs) config["indirect"]["optical_depth_input"] = 0.5;
     method::Ours model(dev, config);
     TinyBatch batch(dev);
     const std::uint32_t n = batch.n;
@@ -203,6 +205,37 @@ TEST(Method, IndirectHeadCanSeeTheVisibility) {
   }
   config["indirect"]["visibility_input"] = "yes";
   EXPECT_THROW(method::Ours(dev, config), ConfigError);
+}
+
+// With indirect.optical_depth_input = k the SH head's last input column is exp(-k τ), τ marched toward the light
+// through the density grid: the march's visibility to the power k. It follows V when both are inputs.
+TEST(Method, IndirectHeadCanSeeTheOpticalDepth) {
+  const Device dev = test::test_device();
+  Json config = tiny_model();
+  config["indirect"]["optical_depth_input"] = 0.25;
+  config["indirect"]["visibility_input"] = true;
+  method::Ours model(dev, config);
+  EXPECT_FLOAT_EQ(model.hyperparams()["indirect"]["optical_depth_input"].get<float>(), 0.25f);
+  EXPECT_EQ(model.indirect_network().n_input_dims(), model.settings().n_features + 5);
+  model.initialize(2);
+  model.refresh_density_grid();
+  TinyBatch batch(dev);
+  method::OursPass pass;
+  model.forward(pass, batch.rays, batch.n, true, 3, batch.basis.dirs(), batch.basis.basis(), true);
+  const auto vis = pass.vis.download_row_major(), in = pass.light_in.download_row_major();
+  const std::uint32_t cols = pass.light_in.cols(), vcols = pass.vis.cols();
+  double spread = 0;
+  for (std::uint32_t i = 0; i < pass.light_in.batch(); ++i) {
+    const float v = vis[std::size_t(i) * vcols];
+    ASSERT_EQ(in[std::size_t(i) * cols + cols - 2], v) << "sample " << i;
+    ASSERT_NEAR(in[std::size_t(i) * cols + cols - 1], std::pow(double(v), 0.25), 2e-6) << "sample " << i;
+    spread += std::fabs(v - vis[0]);
+  }
+  EXPECT_GT(spread, 0.0);
+  for (const Json bad : {Json(-0.5), Json("deep"), Json(1e9)}) {
+    config["indirect"]["optical_depth_input"] = bad;
+    EXPECT_THROW(method::Ours(dev, config), ConfigError) << bad.dump();
+  }
 }
 
 TEST(Method, EnvironmentVisibilityColumnsAndTargetsComeFromTheirDirections) {

@@ -56,7 +56,7 @@ struct Setup {
   std::vector<float> positions, visibility;
 };
 
-Setup run(const Device& d, const std::vector<float>& grid, int n, std::uint32_t steps) {
+Setup run(const Device& d, const std::vector<float>& grid, int n, std::uint32_t steps, float depth_scale = 1.0f) {
   const std::uint32_t n_rays = 6, n_samples = 16;
   std::mt19937 rng(4);
   std::uniform_real_distribution<float> u(-1, 1);
@@ -75,7 +75,7 @@ Setup run(const Device& d, const std::vector<float>& grid, int n, std::uint32_t 
   BatchMatrix pos(d, n_rays * n_samples, 3), vis(d, n_rays * n_samples, 1);
   renderer.sample(r, n_rays, true, 3, t, delta, pos);
   render::DensityGrid g{{n, n, n}, Buffer<float>(d, grid)};
-  render::march_visibility(d, r, n_rays, n_samples, pos, g, steps, vis);
+  render::march_visibility(d, r, n_rays, n_samples, pos, g, steps, vis, depth_scale);
   return {rays, pos.download_row_major(), vis.download_row_major()};
 }
 
@@ -89,6 +89,20 @@ TEST(Visibility, HomogeneousGridTransmitsExpMinusSigmaD) {
     const double d = shadow_segment(x, V3(ray[8], ray[9], ray[10])).second;
     EXPECT_NEAR(s.visibility[i], std::exp(-0.8 * d), 2e-6) << i;
   }
+}
+
+// The SH head's optical-depth input: exp(-k tau) for the same march.
+TEST(Visibility, DepthScaleGivesExpMinusKTau) {
+  for (const float k : {0.25f, 0.0f}) {
+    const auto s = run(test::test_device(), std::vector<float>(8, 0.8f), 2, 32, k);
+    for (std::size_t i = 0; i < s.visibility.size(); ++i) {
+      const V3 x(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2]);
+      const float* ray = &s.rays[(i / 16) * kRayFloats];
+      const double d = shadow_segment(x, V3(ray[8], ray[9], ray[10])).second;
+      EXPECT_NEAR(s.visibility[i], std::exp(-k * 0.8 * d), 2e-6) << i;
+    }
+  }
+  EXPECT_THROW(run(test::test_device(), std::vector<float>(8, 0.8f), 2, 32, -1.0f), InvalidArgument);
 }
 
 TEST(Visibility, RandomGridMatchesDoublePrecisionMarch) {

@@ -55,9 +55,10 @@ struct SubConfig {
   }
 };
 
-// Columns of the SH head's input: the features, the light position, V toward the light.
+// Columns of the SH head's input: the features, the light position, V toward the light, exp(-k τ) toward it.
 std::uint32_t indirect_input_cols(const OursSettings& s) {
-  return s.n_features + (s.light_conditioned ? 3 : 0) + (s.indirect_visibility_input ? 1 : 0);
+  return s.n_features + (s.light_conditioned ? 3 : 0) + (s.indirect_visibility_input ? 1 : 0) +
+         (s.indirect_optical_depth > 0.0f ? 1 : 0);
 }
 
 void check_pass(const OursPass& pass, const char* what) {
@@ -204,6 +205,11 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
         "the head also sees V(x, ω_l), the visibility toward the point light (the network's, or the march's when "
         "marching; no gradient reaches ψ): whether x lies in the light's shadow, which the features and the "
         "light position alone encode only through the head's own capacity");
+    s.indirect_optical_depth = sub.reader.number(
+        "optical_depth_input", 0.0f, 0.0f, 1e3f,
+        "k: with k > 0 the head also sees exp(-k τ), τ the optical depth from x toward the point light marched "
+        "through the density grid (no gradient reaches the density). Unlike V = exp(-τ), which is 0 wherever the "
+        "light arrives only as multiply scattered light, it still tells how deep in the medium x lies; 0: off");
     sub.finish();
     const std::string ptr = r.pointer("indirect");
     net = with_heads(net, ptr + "/network", Json::array({{{"n_dims", 3 * n_sh}, {"activation", "None"}}}));
@@ -214,13 +220,15 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
       nested.push_back(l);
     }
     if (s.indirect_visibility_input) nested.push_back({{"type", "Identity"}, {"n_dims_to_encode", 1}});
+    if (s.indirect_optical_depth > 0.0f) nested.push_back({{"type", "Identity"}, {"n_dims_to_encode", 1}});
     auto e = nn::create_encoding({{"type", "Composite"}, {"nested", nested}}, indirect_input_cols(s),
                                  ptr + "/light_encoding");
     auto n = nn::create_network(net, e->n_output_dims(), 3 * n_sh, ptr + "/network");
     m_indirect = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
     Json res{{"light_encoding", s.light_conditioned ? m_indirect->encoding().hyperparams()["nested"][1] : lenc},
              {"network", strip_heads(m_indirect->network().hyperparams())},
-             {"visibility_input", s.indirect_visibility_input}};
+             {"visibility_input", s.indirect_visibility_input},
+             {"optical_depth_input", s.indirect_optical_depth}};
     res["light_encoding"].erase("n_dims_to_encode");
     r.set_resolved("indirect", res);
   } else if (m_variant == Variant::ours) {
@@ -432,8 +440,15 @@ void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& r
   mark(timer, "visibility net forward");
   if (n_sh > 0) {
     nn::copy_columns(m_device, pass.props_raw, prop_heads(), pass.light_in, 0, m_settings.n_features);
+    const std::uint32_t depth_col = m_settings.indirect_optical_depth > 0.0f ? 1 : 0;
     if (m_settings.indirect_visibility_input)  // an input only: its gradient column is dropped (ψ stays isolated)
-      nn::copy_columns(m_device, pass.vis, 0, pass.light_in, indirect_input_cols(m_settings) - 1, 1);
+      nn::copy_columns(m_device, pass.vis, 0, pass.light_in, indirect_input_cols(m_settings) - 1 - depth_col, 1);
+    if (depth_col) {  // an input only, marched through the density grid: no gradient reaches σ
+      nn::ensure_rows(pass.depth_in, m_device, n, 1);
+      render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps,
+                               pass.depth_in, m_settings.indirect_optical_depth);
+      nn::copy_columns(m_device, pass.depth_in, 0, pass.light_in, indirect_input_cols(m_settings) - 1, 1);
+    }
     if (training) m_indirect->forward(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
     else m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,

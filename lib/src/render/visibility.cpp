@@ -3,6 +3,7 @@
 #include <relit/render/visibility.hpp>
 
 #include <algorithm>
+#include <cmath>
 
 namespace relit::render {
 
@@ -19,18 +20,20 @@ void check_grid(const DensityGrid& grid, std::uint32_t steps, const char* what) 
 
 void march_visibility(const Device& device, const Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t n_samples,
                       const nn::BatchMatrix& positions, const DensityGrid& grid, std::uint32_t steps,
-                      nn::BatchMatrix& visibility) {
+                      nn::BatchMatrix& visibility, float depth_scale) {
   const std::uint64_t n = std::uint64_t(n_rays) * n_samples;
   if (positions.batch() != n || positions.cols() != 3 || visibility.cols() != 1)
     throw InvalidArgument("march_visibility: expected " + std::to_string(n) + " sample positions (3 columns) and a "
                           "1-column visibility matrix");
   check_grid(grid, steps, "march_visibility");
+  if (!(depth_scale >= 0.0f) || !std::isfinite(depth_scale))
+    throw InvalidArgument("march_visibility: the depth scale must be finite and >= 0");
   visibility.resize(static_cast<std::uint32_t>(n));
   device
       .kernel("visibility.cl", "march_to_light",
               {{"N_SAMPLES", std::to_string(n_samples)}, {"MARCH_STEPS", std::to_string(steps)}})
       .args(static_cast<std::uint32_t>(n), positions.data(), rays, grid.sigma, grid.dims[0], grid.dims[1], grid.dims[2],
-            visibility.data())
+            depth_scale, visibility.data())
       .launch(n, 64);
 }
 

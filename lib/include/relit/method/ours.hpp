@@ -49,6 +49,7 @@ struct OursSettings {
   float light_position_scale = 0.125f;    ///< the SH head sees the light position times this
   bool light_conditioned = true;          ///< false: c = c(x), the position-only ablation
   bool indirect_visibility_input = false; ///< the SH head also sees V(x, ω_l) (indirect.visibility_input)
+  float indirect_optical_depth = 0.0f;    ///< k > 0: the SH head also sees exp(-k τ(x → p_l)) (indirect.optical_depth_input)
   float initial_density = 0.6931472f;     ///< σ of the property net at initialisation (softplus of its σ bias)
   std::uint32_t grid_resolution = 64;     ///< density grid for visibility targets (per axis)
   std::uint32_t grid_refresh = 16;        ///< refresh the grid every this many training steps
@@ -63,6 +64,7 @@ struct OursPass : ModelPass {
   std::uint32_t n_samples = 0;  ///< samples per ray of the last forward pass
   Buffer<float> t, delta, color, transmittance;
   nn::BatchMatrix positions, net_pos, props_raw, light_in, indirect_raw, vis_in, vis, props, radiance;
+  nn::BatchMatrix depth_in;  // indirect.optical_depth_input: exp(-k τ) toward the light, marched
   nn::BatchMatrix d_props, d_radiance, d_props_raw, d_indirect_raw, d_light_in;
   nn::BatchMatrix vis_in_sub, positions_sub, vis_sub, vis_target, d_vis;  // the visibility net's training subset
   // With an environment: V_ψ's inputs toward the N_e directions (sample-major rows s N_e + j), its outputs, the

@@ -18,10 +18,11 @@ struct DensityGrid {
 };
 
 /// visibility (n_rays * n_samples x 1) = exp(-optical depth) from each sample position (as placed by
-/// VolumeRenderer::sample) toward the point light of its ray, marched in `steps` midpoint steps.
+/// VolumeRenderer::sample) toward the point light of its ray, marched in `steps` midpoint steps. With
+/// `depth_scale` k the result is exp(-k * optical depth) instead (k = 1: the visibility).
 void march_visibility(const Device& device, const Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t n_samples,
                       const nn::BatchMatrix& positions, const DensityGrid& grid, std::uint32_t steps,
-                      nn::BatchMatrix& visibility);
+                      nn::BatchMatrix& visibility, float depth_scale = 1.0f);
 
 /// out (n_samples x N_e) = exp(-optical depth) from each sample position along each of the N_e unit
 /// directions `dirs` (N_e x 3, e.g. EnvironmentSamples::dirs()) to where the ray leaves [-1, 1]^3, marched in
