@@ -15,41 +15,6 @@
 #endif
 #define RAY_FLOATS 20
 
-// Optical depth from x along unit w up to `max_distance` or the exit of the box, whichever is nearer.
-inline float march_depth(__global const float* grid, int4 dims, float3 x, float3 w, float max_distance) {
-  float t0, t1;
-  float d = 0.0f;
-  if (box_intersect(x, w, &t0, &t1)) d = fmin(t1, max_distance) - fmax(t0, 0.0f);
-  float tau = 0.0f;
-  if (d > 0.0f) {
-    const float dt = d / MARCH_STEPS;
-    const float start = fmax(t0, 0.0f);
-    for (int j = 0; j < MARCH_STEPS; ++j) tau += grid_lookup(grid, dims, fma(start + (j + 0.5f) * dt, w, x));
-    tau *= dt;
-  }
-  return tau;
-}
-
-inline float3 tiled_position(__global const float* positions, uint s) {
-  const size_t tile = s / 16, lane = s % 16;
-  return (float3)(positions[(tile * 3 + 0) * 16 + lane], positions[(tile * 3 + 1) * 16 + lane],
-                  positions[(tile * 3 + 2) * 16 + lane]);
-}
-
-// One work-item per sample: V toward the light of the sample's ray (visibility: n x 1 tiled), or with
-// depth_scale k != 1 exp(-k tau), tau the optical depth (the SH head's optical-depth input).
-__kernel void march_to_light(const uint n, __global const float* restrict positions, __global const float* restrict rays,
-                             __global const float* restrict grid, const int nx, const int ny, const int nz,
-                             const float depth_scale, __global float* restrict visibility) {
-  const uint s = get_global_id(0);
-  if (s >= n) return;
-  const float3 x = tiled_position(positions, s);
-  __global const float* ray = rays + (size_t)(s / N_SAMPLES) * RAY_FLOATS;
-  const float3 to_light = (float3)(ray[8], ray[9], ray[10]) - x;
-  const float light_distance = length(to_light);
-  visibility[s] = exp(-depth_scale * march_depth(grid, (int4)(nx, ny, nz, 0), x, to_light / light_distance, light_distance));
-}
-
 // Trilinear lookup (as grid_lookup) at 16 points at once: the coordinate math runs on float16 lanes, the 8
 // corner values are gathered lane by lane.
 inline float16 gather16(__global const float* g, int16 i) {
@@ -78,6 +43,40 @@ inline float16 grid_lookup16(__global const float* g, int4 n, float16 x, float16
   const float16 c01 = mix(gather16(g, r01 + x0), gather16(g, r01 + x1), fx);
   const float16 c11 = mix(gather16(g, r11 + x0), gather16(g, r11 + x1), fx);
   return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
+}
+
+// One work-item per tile of 16 samples (the samples of a tile belong to one ray: N_SAMPLES % 16 == 0), one
+// float16 lane per sample: V toward the ray's light (visibility: n x 1 tiled), or with depth_scale k != 1
+// exp(-k tau), tau the optical depth (the SH head's optical-depth input).
+__kernel void march_to_light(const uint n_tiles, __global const float* restrict positions,
+                             __global const float* restrict rays, __global const float* restrict grid, const int nx,
+                             const int ny, const int nz, const float depth_scale, __global float* restrict visibility) {
+  const uint tile = get_global_id(0);
+  if (tile >= n_tiles) return;
+  const float16 px = vload16(0, positions + ((size_t)tile * 3 + 0) * 16);
+  const float16 py = vload16(0, positions + ((size_t)tile * 3 + 1) * 16);
+  const float16 pz = vload16(0, positions + ((size_t)tile * 3 + 2) * 16);
+  __global const float* ray = rays + (size_t)((tile * 16) / N_SAMPLES) * RAY_FLOATS;
+  const float16 lx = ray[8] - px, ly = ray[9] - py, lz = ray[10] - pz;
+  const float16 light_distance = sqrt(fma(lx, lx, fma(ly, ly, lz * lz)));
+  const float16 wx = lx / light_distance, wy = ly / light_distance, wz = lz / light_distance;
+  // Slab test per lane, as box_intersect; the march ends at the box's exit or at the light, whichever is nearer.
+  const float16 ix = 1.0f / wx, iy = 1.0f / wy, iz = 1.0f / wz;
+  const float16 ax = (-1.0f - px) * ix, bx = (1.0f - px) * ix;
+  const float16 ay = (-1.0f - py) * iy, by = (1.0f - py) * iy;
+  const float16 az = (-1.0f - pz) * iz, bz = (1.0f - pz) * iz;
+  const float16 t0 = fmax(fmax(fmin(ax, bx), fmin(ay, by)), fmin(az, bz));
+  const float16 t1 = fmin(fmin(fmax(ax, bx), fmax(ay, by)), fmax(az, bz));
+  const float16 start = fmax(t0, 0.0f);
+  const float16 d = fmax(fmin(t1, light_distance) - start, 0.0f);  // 0: the lane's shadow ray misses the box
+  const float16 dt = d * (1.0f / MARCH_STEPS);
+  const int4 dims = (int4)(nx, ny, nz, 0);
+  float16 tau = 0.0f;
+  for (int j = 0; j < MARCH_STEPS; ++j) {
+    const float16 tj = fma((float16)(j + 0.5f), dt, start);
+    tau += grid_lookup16(grid, dims, fma(tj, wx, px), fma(tj, wy, py), fma(tj, wz, pz));
+  }
+  vstore16(exp(-depth_scale * tau * dt), 0, visibility + (size_t)tile * 16);
 }
 
 // V from every sample toward every one of n_dirs directions (dirs: n_dirs x 3 tiled), to the exit of the box:

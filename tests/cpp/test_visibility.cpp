@@ -200,6 +200,10 @@ TEST(Visibility, BadShapesAreErrors) {
   EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{2, 2, 2}, Buffer<float>(d, 7)}, 8, vis), InvalidArgument);
   EXPECT_THROW(render::march_visibility(d, rays, 2, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 8, vis), InvalidArgument);
   EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 0, vis), InvalidArgument);
+  // A tile of 16 samples belongs to one ray.
+  Buffer<float> two_rays(d, 2 * kRayFloats);
+  EXPECT_THROW(render::march_visibility(d, two_rays, 2, 8, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 8, vis),
+               InvalidArgument);
   BatchMatrix dirs(d, 4, 3), out(d, 16, 4), out3(d, 16, 3), dirs2(d, 4, 2);
   const render::DensityGrid ok{{1, 1, 1}, Buffer<float>(d, 1)};
   // The output needs one column per direction, the directions 3 columns, the grid its voxels, steps >= 1.

@@ -25,6 +25,9 @@ void march_visibility(const Device& device, const Buffer<float>& rays, std::uint
   if (positions.batch() != n || positions.cols() != 3 || visibility.cols() != 1)
     throw InvalidArgument("march_visibility: expected " + std::to_string(n) + " sample positions (3 columns) and a "
                           "1-column visibility matrix");
+  if (n_samples == 0 || n_samples % nn::kBatchTile != 0)
+    throw InvalidArgument("march_visibility: samples per ray must be a positive multiple of 16, got " +
+                          std::to_string(n_samples));
   check_grid(grid, steps, "march_visibility");
   if (!(depth_scale >= 0.0f) || !std::isfinite(depth_scale))
     throw InvalidArgument("march_visibility: the depth scale must be finite and >= 0");
@@ -32,9 +35,9 @@ void march_visibility(const Device& device, const Buffer<float>& rays, std::uint
   device
       .kernel("visibility.cl", "march_to_light",
               {{"N_SAMPLES", std::to_string(n_samples)}, {"MARCH_STEPS", std::to_string(steps)}})
-      .args(static_cast<std::uint32_t>(n), positions.data(), rays, grid.sigma, grid.dims[0], grid.dims[1], grid.dims[2],
+      .args(static_cast<std::uint32_t>(n / nn::kBatchTile), positions.data(), rays, grid.sigma, grid.dims[0], grid.dims[1], grid.dims[2],
             depth_scale, visibility.data())
-      .launch(n, 64);
+      .launch(n / nn::kBatchTile, 16);
 }
 
 void march_visibility_directions(const Device& device, const nn::BatchMatrix& positions, const nn::BatchMatrix& dirs,
