@@ -526,6 +526,26 @@ TEST_F(MethodTrainer, TrainingLowersTheLoss) {
   EXPECT_EQ(s.step, 81u);
 }
 
+// training.visibility_loss picks the visibility net's loss: the same first step scores differently under L2 and
+// SrgbL2 (the sRGB curve is steep near 0), the resolved config names it, and an unknown type is an error.
+TEST_F(MethodTrainer, VisibilityLossIsAConfigurableComponent) {
+  const Device dev = test::test_device();
+  method::Trainer l2(dev, dataset(), config());
+  Json cfg = config();
+  cfg["training"]["visibility_loss"] = {{"type", "SrgbL2"}};
+  method::Trainer srgb(dev, dataset(), cfg);
+  EXPECT_EQ(l2.config()["training"]["visibility_loss"]["type"], "L2");
+  EXPECT_EQ(srgb.config()["training"]["visibility_loss"]["type"], "SrgbL2");
+  l2.step();
+  srgb.step();
+  const double a = l2.stats().visibility_loss, b = srgb.stats().visibility_loss;
+  EXPECT_TRUE(std::isfinite(a) && std::isfinite(b));
+  EXPECT_GT(a, 0.0);
+  EXPECT_NE(a, b);
+  cfg["training"]["visibility_loss"] = {{"type", "Huber"}};
+  EXPECT_THROW(method::Trainer(dev, dataset(), cfg), ConfigError);
+}
+
 TEST_F(MethodTrainer, EnvPointDatasetsTrainTheEnvironmentPartsAndResume) {
   // An 'env+point' dataset: relit turns the model's environment on, trains S_env and c_env, resumes exactly,
   // and evaluates its views under the dataset's environment; a config that says otherwise is an error.

@@ -156,7 +156,7 @@ std::shared_ptr<const EnvironmentLight> dataset_environment(const std::string& d
 
 namespace {
 
-TrainingSettings read_training(config::Reader& r, Json& loss, Json& optimizer, Json& vis_optimizer) {
+TrainingSettings read_training(config::Reader& r, Json& loss, Json& vis_loss, Json& optimizer, Json& vis_optimizer) {
   TrainingSettings t;
   t.batch_rays = r.uint("batch_rays", 1200, 16, 1u << 20, "camera rays per training step");
   t.steps = r.uint("steps", 3000, 1, 1u << 30, "training steps of a run (relit train --steps overrides)");
@@ -168,6 +168,9 @@ TrainingSettings read_training(config::Reader& r, Json& loss, Json& optimizer, J
   t.checkpoint_every = r.uint("checkpoint_every", 1000, 0, 1u << 30, "steps between checkpoints (0: only at the end)");
   const Json adam = {{"type", "Adam"}, {"learning_rate", 1e-2}, {"epsilon", 1e-15}};
   loss = r.sub("loss", Json{{"type", "L2"}}, "component", "render loss on linear radiance");
+  vis_loss = r.sub("visibility_loss", Json{{"type", "L2"}}, "component",
+                   "loss of the visibility net against the marched transmittance (SrgbL2 weighs the errors of "
+                   "nearly shadowed samples as the metric sees them)");
   optimizer = r.sub("optimizer", adam, "component", "optimiser of θ (property net and SH head)");
   vis_optimizer = r.sub("visibility_optimizer", adam, "component", "optimiser of ψ (visibility net)");
   return t;
@@ -211,8 +214,8 @@ config::Docs run_config_docs() {
     for (std::size_t i = first; i < docs.size(); ++i) docs[i].first += " [" + m + "]";
   }
   config::Reader tr(Json::object(), "/training", "training");
-  Json loss, opt, vis_opt;
-  read_training(tr, loss, opt, vis_opt);
+  Json loss, vis_loss, opt, vis_opt;
+  read_training(tr, loss, vis_loss, opt, vis_opt);
   docs.emplace_back("/training", tr.docs());
   return docs;
 }
@@ -222,15 +225,16 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
   config::Reader r(config, "", "run");
   const Json model = read_run_keys(r);
   const std::string method = r.resolved().value("method", "ours");
-  Json loss, opt, vis_opt;
+  Json loss, vis_loss, opt, vis_opt;
   {
     config::Reader tr(r.sub("training", Json::object(), "object", "training settings"), r.pointer("training"), "training");
-    m_settings = read_training(tr, loss, opt, vis_opt);
+    m_settings = read_training(tr, loss, vis_loss, opt, vis_opt);
     m_loss = nn::create_loss(loss, "/training/loss");
-    m_vis_loss = nn::create_loss(Json{{"type", "L2"}}, "/training/visibility_loss");
+    m_vis_loss = nn::create_loss(vis_loss, "/training/visibility_loss");
     m_optimizer = nn::create_optimizer(opt, "/training/optimizer");
     m_vis_optimizer = nn::create_optimizer(vis_opt, "/training/visibility_optimizer");
     tr.set_resolved("loss", m_loss->hyperparams());
+    tr.set_resolved("visibility_loss", m_vis_loss->hyperparams());
     tr.set_resolved("optimizer", m_optimizer->hyperparams());
     tr.set_resolved("visibility_optimizer", m_vis_optimizer->hyperparams());
     tr.finish();
