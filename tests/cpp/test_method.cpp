@@ -389,6 +389,39 @@ TEST(Method, InferenceVisibilityCanMarchTheDensityGrid) {
   EXPECT_THROW(method::render_image(model, sc.camera, sc.light, march), InvalidArgument);
 }
 
+// training_visibility "march": a training pass takes V from the density-grid march (what forward() gives when
+// asked to march), an inference pass keeps the model's inference_visibility; other values are config errors.
+TEST(Method, TrainingVisibilityCanMarchTheDensityGrid) {
+  const Device dev = test::test_device();
+  Json config = tiny_model();
+  config["training_visibility"] = "march";
+  method::Ours model(dev, config);
+  EXPECT_EQ(model.hyperparams()["training_visibility"], "march");
+  model.initialize(2);
+  model.refresh_density_grid();
+  TinyBatch batch(dev);
+  method::OursPass marched, training, inference;
+  model.forward(marched, batch.rays, batch.n, true, 3, batch.basis.dirs(), batch.basis.basis(), true);
+  method::PassOptions o;
+  o.training = true;
+  o.seed = 1;
+  o.jitter_seed = 3;
+  model.render(training, batch.rays, batch.n, o);
+  o.training = false;
+  model.render(inference, batch.rays, batch.n, o);
+  const auto want = marched.vis.download_row_major(), got = training.vis.download_row_major(),
+             net = inference.vis.download_row_major();
+  ASSERT_EQ(got.size(), want.size());
+  double diff = 0;
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    ASSERT_EQ(got[i], want[i]) << "sample " << i;
+    diff += std::fabs(net[i] - want[i]);
+  }
+  EXPECT_GT(diff, 0.0);  // the inference pass asked the network
+  config["training_visibility"] = "always";
+  EXPECT_THROW(method::Ours(dev, config), ConfigError);
+}
+
 // initial_density sets the σ head's bias: the median σ of the freshly initialised density grid follows it
 // (the hidden layers' random output spreads σ around softplus(bias), so the median, not every voxel).
 TEST(Method, InitialDensitySetsTheStartingSigma) {

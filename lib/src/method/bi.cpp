@@ -76,14 +76,14 @@ void NeuralReflectanceField::render(ModelPass& base, Buffer<float>& rays, std::u
   draw_basis(pass, o);
   const Branch coarse = coarse_branch(), fine = fine_branch();
   forward_branch(pass.coarse, coarse, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(),
-                 o.march_visibility, o.timer, o.env, true);
+                 marches(o), o.timer, o.env, true);
   prepare_branch(pass, fine, n_rays, pass.coarse.n_env);
   detail::ensure_size(pass.t_fine_only, m_device, std::size_t(n_rays) * m_n_fine);
   sample_fine(m_device, rays, n_rays, coarse.n_samples, pass.coarse.t, pass.coarse.delta, pass.coarse.props, m_n_fine,
               o.training, o.jitter_seed ^ 0x5bd1e995u, pass.t_fine_only, pass.t, pass.delta, pass.positions);
   if (o.timer) o.timer->mark("hierarchical sampling");
   forward_branch(pass, fine, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(),
-                 o.march_visibility, o.timer, o.env, false);
+                 marches(o), o.timer, o.env, false);
 }
 
 const Buffer<float>& NeuralReflectanceField::color(const ModelPass& base, std::uint32_t i) const {

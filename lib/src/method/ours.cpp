@@ -141,6 +141,10 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   }
   s.inference_visibility = r.choice("inference_visibility", "network", {"network", "march"},
                                     "visibility when rendering: the network (as the paper) or a density-grid march");
+  s.training_visibility = r.choice("training_visibility", "network", {"network", "march"},
+                                   "visibility of the training renders: the network (as the paper) or a march of the "
+                                   "density grid (the visibility net still trains, for inference_visibility "
+                                   "\"network\")");
   Json env_network, env_resolved;
   {
     const bool env_head = has_sh_head();
@@ -622,8 +626,8 @@ const OursPass& ours_pass(const ModelPass& pass) { return ours_pass(const_cast<M
 void Ours::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& o) const {
   OursPass& pass = ours_pass(base);
   draw_basis(pass, o);
-  forward(pass, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(), o.march_visibility,
-          o.timer, o.env);
+  forward(pass, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(), marches(o), o.timer,
+          o.env);
 }
 
 void Ours::draw_basis(OursPass& pass, const PassOptions& o) const {

@@ -56,6 +56,7 @@ struct OursSettings {
   std::uint32_t march_steps = 64;         ///< midpoint steps of the visibility-target march
   float visibility_fraction = 0.25f;      ///< share of a batch's rays whose samples train the visibility net
   std::string inference_visibility = "network";  ///< "network" (as the paper) or "march" (density grid)
+  std::string training_visibility = "network";   ///< V of the training renders: "network" (as the paper) or "march"
   EnvironmentSettings environment;
 };
 
@@ -167,6 +168,10 @@ class Ours : public Model {
   virtual void configure_renderer_extra(config::Reader& r) { (void)r; }
   /// Ours and Ours + BRDF have the SH heads and their keys; the baselines do not.
   bool has_sh_head() const { return m_variant == Variant::ours || m_variant == Variant::ours_brdf; }
+  /// Whether a pass marches the density grid for V: asked to, or a training pass with training_visibility "march".
+  bool marches(const PassOptions& o) const {
+    return o.march_visibility || (o.training && m_settings.training_visibility == "march");
+  }
   /// Draws the pass's K indirect directions (and their SH basis) of iteration o.iteration.
   void draw_basis(OursPass& pass, const PassOptions& o) const;
   /// HG g = g_scale() tanh(raw): 0.95, or 0 for Bi et al.'s isotropic phase (Ours + BRDF: the roughness, 1).
