@@ -34,3 +34,15 @@ __kernel void scale_rgb_by_ray_intensity(const uint n_tiles, const uint per_chan
     }
   }
 }
+
+// m[:, col + j] *= factor[:, 0] for j < count, in place (factor: a 1-column tiled matrix of the same batch).
+__kernel void multiply_columns(const uint n_tiles, const uint count, __global const float* restrict factor,
+                               __global float* restrict m, const uint cols, const uint col) {
+  const size_t t = get_global_id(0);
+  if (t >= n_tiles) return;
+  const float16 f = vload16(0, factor + t * 16);
+  for (uint j = 0; j < count; ++j) {
+    __global float* p = m + (t * cols + col + j) * 16;
+    vstore16(f * vload16(0, p), 0, p);
+  }
+}

@@ -115,14 +115,18 @@ void check_gradients(method::Ours& model, const render::EnvironmentSamples* env,
 
 TEST(Method, RenderGradientMatchesFiniteDifferencesEndToEnd) {
   const Device dev = test::test_device();
-  for (const std::string sh : {"none", "1", "1 closed form", "1 visibility input", "1 optical depth input"}) {
+  for (const std::string sh : {"none", "1", "1 closed form", "1 visibility input", "1 optical depth input",
+                               "1 optical depth input and attenuation"}) {
     SCOPED_TRACE("sh " + sh);
     Json config = tiny_model(sh.substr(0, sh.find(' ')));
     config["renderer"]["closed_form_indirect"] = sh.find("closed") != std::string::npos;
     if (sh.find("visibility") != std::string::npos) config["indirect"]["visibility_input"] = true;
     if (sh.find("depth") != std::string::npos) config["indirect"]["optical_depth_input"] = 0.25;
+    config["indirect"]["optical_depth_attenuation"] = sh.find("attenuation") != std::string::npos;
     method::Ours model(dev, config);
     model.initialize(11);
+    // The optical depth comes from the density grid: fill it (it stays fixed while θ is perturbed).
+    if (sh.find("depth") != std::string::npos) model.refresh_density_grid();
     check_gradients(model, nullptr);
   }
 }
@@ -236,6 +240,29 @@ TEST(Method, IndirectHeadCanSeeTheOpticalDepth) {
     config["indirect"]["optical_depth_input"] = bad;
     EXPECT_THROW(method::Ours(dev, config), ConfigError) << bad.dump();
   }
+  // The attenuation multiplies the head's SH output by the same exp(-k τ): the props' SH columns are the
+  // unattenuated ones times the input column; it needs k > 0.
+  config["indirect"]["optical_depth_input"] = 0.25;
+  config["indirect"]["visibility_input"] = false;
+  method::Ours plain(dev, config);
+  config["indirect"]["optical_depth_attenuation"] = true;
+  method::Ours attenuated(dev, config);
+  for (method::Ours* m : {&plain, &attenuated}) {
+    m->initialize(2);
+    m->refresh_density_grid();
+  }
+  method::OursPass p0, p1;
+  plain.forward(p0, batch.rays, batch.n, true, 3, batch.basis.dirs(), batch.basis.basis());
+  attenuated.forward(p1, batch.rays, batch.n, true, 3, batch.basis.dirs(), batch.basis.basis());
+  const auto a0 = p0.props.download_row_major(), a1 = p1.props.download_row_major(),
+             depth = p1.depth_in.download_row_major();
+  const std::uint32_t pc = p0.props.cols(), n_sh = 4;
+  for (std::uint32_t i = 0; i < p0.props.batch(); ++i)
+    for (std::uint32_t c = 0; c < 3 * n_sh; ++c)
+      ASSERT_FLOAT_EQ(a1[std::size_t(i) * pc + render::kSH + c], a0[std::size_t(i) * pc + render::kSH + c] * depth[i])
+          << "sample " << i << " coefficient " << c;
+  config["indirect"]["optical_depth_input"] = 0;
+  EXPECT_THROW(method::Ours(dev, config), ConfigError);
 }
 
 TEST(Method, EnvironmentVisibilityColumnsAndTargetsComeFromTheirDirections) {

@@ -214,6 +214,12 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
         "k: with k > 0 the head also sees exp(-k τ), τ the optical depth from x toward the point light marched "
         "through the density grid (no gradient reaches the density). Unlike V = exp(-τ), which is 0 wherever the "
         "light arrives only as multiply scattered light, it still tells how deep in the medium x lies; 0: off");
+    s.indirect_depth_attenuation = sub.reader.boolean(
+        "optical_depth_attenuation", false,
+        "multiply the head's output by the same exp(-k τ) (needs optical_depth_input > 0): the indirect light "
+        "then falls off into the medium by construction, and the head predicts what multiplies that falloff");
+    if (s.indirect_depth_attenuation && s.indirect_optical_depth <= 0.0f)
+      sub.reader.fail("optical_depth_attenuation", "needs optical_depth_input > 0 (the k of the falloff)");
     sub.finish();
     const std::string ptr = r.pointer("indirect");
     net = with_heads(net, ptr + "/network", Json::array({{{"n_dims", 3 * n_sh}, {"activation", "None"}}}));
@@ -232,7 +238,8 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     Json res{{"light_encoding", s.light_conditioned ? m_indirect->encoding().hyperparams()["nested"][1] : lenc},
              {"network", strip_heads(m_indirect->network().hyperparams())},
              {"visibility_input", s.indirect_visibility_input},
-             {"optical_depth_input", s.indirect_optical_depth}};
+             {"optical_depth_input", s.indirect_optical_depth},
+             {"optical_depth_attenuation", s.indirect_depth_attenuation}};
     res["light_encoding"].erase("n_dims_to_encode");
     r.set_resolved("indirect", res);
   } else if (m_variant == Variant::ours) {
@@ -457,6 +464,7 @@ void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& r
     else m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,
                                    1.0f / m_settings.intensity_reference);
+    if (m_settings.indirect_depth_attenuation) nn::multiply_columns(m_device, pass.depth_in, pass.props, render::kSH, 3 * n_sh);
     if (m_environment && n_env > 0) {  // c += c_env(f(x)): the environment's indirect light, not scaled by I
       const nn::ConstParamSlice theta_env{&m_params, m_property->n_params() + m_indirect->n_params()};
       if (training) m_environment->forward(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
@@ -502,6 +510,7 @@ void Ours::backward_branch(OursPass& pass, const Branch& branch, const Buffer<fl
   if (n_sh > 0) {
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.d_props, render::kSH, pass.d_indirect_raw, 0, n_sh,
                                    1.0f / m_settings.intensity_reference);
+    if (m_settings.indirect_depth_attenuation) nn::multiply_columns(m_device, pass.depth_in, pass.d_indirect_raw, 0, 3 * n_sh);
     m_indirect->backward(m_device, {&m_params, m_property->n_params()}, pass.light_in, pass.indirect_raw,
                          pass.d_indirect_raw, {&m_grads, m_property->n_params()}, false, &pass.d_light_in,
                          *pass.ws_indirect);

@@ -41,4 +41,16 @@ void scale_rgb_by_ray_intensity(const Device& device, const Buffer<float>& rays,
       .launch(n_tiles, 16);
 }
 
+void multiply_columns(const Device& device, const BatchMatrix& factor, BatchMatrix& m, std::uint32_t col,
+                      std::uint32_t count) {
+  if (factor.cols() != 1) throw InvalidArgument("multiply_columns: the factor must have one column");
+  check(m, col, m, col, count, "multiply_columns");
+  if (factor.batch() != m.batch())
+    throw InvalidArgument("multiply_columns: the factor has " + std::to_string(factor.batch()) + " rows, the matrix " +
+                          std::to_string(m.batch()));
+  const std::uint32_t n_tiles = (m.batch() + kBatchTile - 1) / kBatchTile;
+  if (n_tiles == 0 || count == 0) return;
+  device.kernel("columns.cl", "multiply_columns").args(n_tiles, count, factor.data(), m.data(), m.cols(), col).launch(n_tiles, 16);
+}
+
 }  // namespace relit::nn

@@ -49,6 +49,7 @@ struct OursSettings {
   float light_position_scale = 0.125f;    ///< the SH head sees the light position times this
   bool light_conditioned = true;          ///< false: c = c(x), the position-only ablation
   bool indirect_visibility_input = false; ///< the SH head also sees V(x, ω_l) (indirect.visibility_input)
+  bool indirect_depth_attenuation = false; ///< the SH head's output is multiplied by exp(-k τ) (indirect.optical_depth_attenuation)
   float indirect_optical_depth = 0.0f;    ///< k > 0: the SH head also sees exp(-k τ(x → p_l)) (indirect.optical_depth_input)
   float initial_density = 0.6931472f;     ///< σ of the property net at initialisation (softplus of its σ bias)
   std::uint32_t grid_resolution = 64;     ///< density grid for visibility targets (per axis)

@@ -18,4 +18,9 @@ void scale_rgb_by_ray_intensity(const Device& device, const Buffer<float>& rays,
                                 const BatchMatrix& src, std::uint32_t src_col, BatchMatrix& dst, std::uint32_t dst_col,
                                 std::uint32_t per_channel, float scale = 1.0f);
 
+/// m[:, col + j] *= factor[:, 0] for j < count, in place: a per-sample scale (its own adjoint). `factor` has one
+/// column and m's batch size.
+void multiply_columns(const Device& device, const BatchMatrix& factor, BatchMatrix& m, std::uint32_t col,
+                      std::uint32_t count);
+
 }  // namespace relit::nn
