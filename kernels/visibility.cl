@@ -5,8 +5,6 @@
 //
 //   V(x, w) = exp(-sum_j sigma(x + t_j w) dt),  t_j = (j + 1/2) dt,  dt = d / MARCH_STEPS
 // where d is the distance from x to where the shadow ray leaves the box (or to the light, if nearer).
-#include "geometry.clh"
-
 #ifndef N_SAMPLES
 #define N_SAMPLES 64
 #endif
@@ -45,6 +43,33 @@ inline float16 grid_lookup16(__global const float* g, int4 n, float16 x, float16
   return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
 }
 
+// Optical depth of 16 samples (float16 lanes) along their unit directions w, from where each lane's ray is
+// inside the box up to its exit or `max_distance`, whichever is nearer (slab test per lane, as box_intersect;
+// a lane whose ray misses the box gets 0).
+inline float16 march_depth16(__global const float* grid, int4 dims, float16 px, float16 py, float16 pz, float16 wx,
+                             float16 wy, float16 wz, float16 max_distance) {
+  const float16 ix = 1.0f / wx, iy = 1.0f / wy, iz = 1.0f / wz;
+  const float16 ax = (-1.0f - px) * ix, bx = (1.0f - px) * ix;
+  const float16 ay = (-1.0f - py) * iy, by = (1.0f - py) * iy;
+  const float16 az = (-1.0f - pz) * iz, bz = (1.0f - pz) * iz;
+  const float16 t0 = fmax(fmax(fmin(ax, bx), fmin(ay, by)), fmin(az, bz));
+  const float16 t1 = fmin(fmin(fmax(ax, bx), fmax(ay, by)), fmax(az, bz));
+  const float16 start = fmax(t0, 0.0f);
+  const float16 dt = fmax(fmin(t1, max_distance) - start, 0.0f) * (1.0f / MARCH_STEPS);
+  float16 tau = 0.0f;
+  for (int j = 0; j < MARCH_STEPS; ++j) {
+    const float16 tj = fma((float16)(j + 0.5f), dt, start);
+    tau += grid_lookup16(grid, dims, fma(tj, wx, px), fma(tj, wy, py), fma(tj, wz, pz));
+  }
+  return tau * dt;
+}
+
+inline void load_positions16(__global const float* positions, uint tile, float16* px, float16* py, float16* pz) {
+  *px = vload16(0, positions + ((size_t)tile * 3 + 0) * 16);
+  *py = vload16(0, positions + ((size_t)tile * 3 + 1) * 16);
+  *pz = vload16(0, positions + ((size_t)tile * 3 + 2) * 16);
+}
+
 // One work-item per tile of 16 samples (the samples of a tile belong to one ray: N_SAMPLES % 16 == 0), one
 // float16 lane per sample: V toward the ray's light (visibility: n x 1 tiled), or with depth_scale k != 1
 // exp(-k tau), tau the optical depth (the SH head's optical-depth input).
@@ -53,30 +78,14 @@ __kernel void march_to_light(const uint n_tiles, __global const float* restrict 
                              const int ny, const int nz, const float depth_scale, __global float* restrict visibility) {
   const uint tile = get_global_id(0);
   if (tile >= n_tiles) return;
-  const float16 px = vload16(0, positions + ((size_t)tile * 3 + 0) * 16);
-  const float16 py = vload16(0, positions + ((size_t)tile * 3 + 1) * 16);
-  const float16 pz = vload16(0, positions + ((size_t)tile * 3 + 2) * 16);
+  float16 px, py, pz;
+  load_positions16(positions, tile, &px, &py, &pz);
   __global const float* ray = rays + (size_t)((tile * 16) / N_SAMPLES) * RAY_FLOATS;
   const float16 lx = ray[8] - px, ly = ray[9] - py, lz = ray[10] - pz;
   const float16 light_distance = sqrt(fma(lx, lx, fma(ly, ly, lz * lz)));
-  const float16 wx = lx / light_distance, wy = ly / light_distance, wz = lz / light_distance;
-  // Slab test per lane, as box_intersect; the march ends at the box's exit or at the light, whichever is nearer.
-  const float16 ix = 1.0f / wx, iy = 1.0f / wy, iz = 1.0f / wz;
-  const float16 ax = (-1.0f - px) * ix, bx = (1.0f - px) * ix;
-  const float16 ay = (-1.0f - py) * iy, by = (1.0f - py) * iy;
-  const float16 az = (-1.0f - pz) * iz, bz = (1.0f - pz) * iz;
-  const float16 t0 = fmax(fmax(fmin(ax, bx), fmin(ay, by)), fmin(az, bz));
-  const float16 t1 = fmin(fmin(fmax(ax, bx), fmax(ay, by)), fmax(az, bz));
-  const float16 start = fmax(t0, 0.0f);
-  const float16 d = fmax(fmin(t1, light_distance) - start, 0.0f);  // 0: the lane's shadow ray misses the box
-  const float16 dt = d * (1.0f / MARCH_STEPS);
-  const int4 dims = (int4)(nx, ny, nz, 0);
-  float16 tau = 0.0f;
-  for (int j = 0; j < MARCH_STEPS; ++j) {
-    const float16 tj = fma((float16)(j + 0.5f), dt, start);
-    tau += grid_lookup16(grid, dims, fma(tj, wx, px), fma(tj, wy, py), fma(tj, wz, pz));
-  }
-  vstore16(exp(-depth_scale * tau * dt), 0, visibility + (size_t)tile * 16);
+  const float16 tau = march_depth16(grid, (int4)(nx, ny, nz, 0), px, py, pz, lx / light_distance, ly / light_distance,
+                                    lz / light_distance, light_distance);
+  vstore16(exp(-depth_scale * tau), 0, visibility + (size_t)tile * 16);
 }
 
 // V from every sample toward every one of n_dirs directions (dirs: n_dirs x 3 tiled), to the exit of the box:
@@ -91,24 +100,9 @@ __kernel void march_directions(const uint n_tiles, const uint n_dirs, __global c
   const uint tile = item / n_dirs, k = item % n_dirs;
   const size_t dbase = (size_t)(k / 16) * 48 + k % 16;
   const float3 w = (float3)(dirs[dbase], dirs[dbase + 16], dirs[dbase + 32]);
-  const float16 px = vload16(0, positions + ((size_t)tile * 3 + 0) * 16);
-  const float16 py = vload16(0, positions + ((size_t)tile * 3 + 1) * 16);
-  const float16 pz = vload16(0, positions + ((size_t)tile * 3 + 2) * 16);
-  // Slab test per lane, as box_intersect.
-  const float3 inv = 1.0f / w;
-  const float16 ax = (-1.0f - px) * inv.x, bx = (1.0f - px) * inv.x;
-  const float16 ay = (-1.0f - py) * inv.y, by = (1.0f - py) * inv.y;
-  const float16 az = (-1.0f - pz) * inv.z, bz = (1.0f - pz) * inv.z;
-  const float16 t0 = fmax(fmax(fmin(ax, bx), fmin(ay, by)), fmin(az, bz));
-  const float16 t1 = fmin(fmin(fmax(ax, bx), fmax(ay, by)), fmax(az, bz));
-  const float16 start = fmax(t0, 0.0f);
-  const float16 d = fmax(t1 - start, 0.0f);  // 0 for a lane whose ray misses the box: transmittance 1
-  const float16 dt = d * (1.0f / MARCH_STEPS);
-  const int4 dims = (int4)(nx, ny, nz, 0);
-  float16 tau = 0.0f;
-  for (int j = 0; j < MARCH_STEPS; ++j) {
-    const float16 tj = fma((float16)(j + 0.5f), dt, start);
-    tau += grid_lookup16(grid, dims, fma(tj, w.x, px), fma(tj, w.y, py), fma(tj, w.z, pz));
-  }
-  vstore16(exp(-tau * dt), 0, out + ((size_t)tile * n_dirs + k) * 16);
+  float16 px, py, pz;
+  load_positions16(positions, tile, &px, &py, &pz);
+  const float16 tau = march_depth16(grid, (int4)(nx, ny, nz, 0), px, py, pz, (float16)w.x, (float16)w.y, (float16)w.z,
+                                    (float16)INFINITY);
+  vstore16(exp(-tau), 0, out + ((size_t)tile * n_dirs + k) * 16);
 }
