@@ -199,7 +199,8 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     res["network"] = strip_heads(res["network"]);
     r.set_resolved("property", res);
   }
-  // Indirect SH head: [features, light position (, V toward the light)] → 3 n_sh coefficients per unit intensity.
+  // Indirect SH head: [features, light position (, V toward the light) (, exp(-k τ) toward it)] → 3 n_sh coefficients
+  // per unit intensity.
   if (n_sh > 0) {
     SubConfig sub(r, "indirect", default_indirect(), "indirect SH head h_θ: {light_encoding, network, visibility_input, optical_depth_input}", docs);
     const Json lenc = sub.component("light_encoding", default_indirect(), "encoding of the light position (3 dims)");
