@@ -398,16 +398,19 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
 #define DW_ROWS (4 * DW_RJ)
 #endif
 
-// The accumulators: DW_VEC samples (float8: one 256-bit register, float16: one 512-bit register).
-#if DW_VEC == 16
-typedef float16 dw_vec;
-#define DW_LOAD(p) vload16(0, (p))
-inline float dw_sum(float16 v) {
+// Sum of the 16 lanes, in a fixed order (pairwise halves).
+inline float sum16(float16 v) {
   const float8 s8 = v.lo + v.hi;
   const float4 s4 = s8.lo + s8.hi;
   const float2 s2 = s4.lo + s4.hi;
   return s2.x + s2.y;
 }
+
+// The accumulators: DW_VEC samples (float8: one 256-bit register, float16: one 512-bit register).
+#if DW_VEC == 16
+typedef float16 dw_vec;
+#define DW_LOAD(p) vload16(0, (p))
+#define dw_sum sum16
 #else
 typedef float8 dw_vec;
 #define DW_LOAD(p) vload8(0, (p))
@@ -523,13 +526,6 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 #undef HS
 #define HS TRAIN_G
 #define N_ROWS (ACT_H0 + N_HIDDEN * WIDTH)
-
-inline float sum16(float16 v) {
-  const float8 s8 = v.lo + v.hi;
-  const float4 s4 = s8.lo + s8.hi;
-  const float2 s2 = s4.lo + s4.hi;
-  return s2.x + s2.y;
-}
 
 // The fused training kernel: h_(l-1) from the scratch rows (hprev), dZ kept in gout only.
 #define H_SCRATCH(k, u) hprev[(k) * HS + (u)]
