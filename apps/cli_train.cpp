@@ -13,6 +13,7 @@
 #include <relit/method/trainer.hpp>
 #include <relit/report.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -114,8 +115,9 @@ struct RenderOptions {
   float env_scale = 1.0f;
   bool env_visible = false;
   std::vector<float> eye{0, -4, 1}, target{0, 0, 0}, light{0, -3, 3}, intensity{600};
-  int resolution = 128;
+  int resolution = 0;  // 0: 128, or the view's
   float fov = 0.8f;
+  std::uint32_t spp = 1;
 };
 
 int run_render(const RenderOptions& o) {
@@ -137,10 +139,15 @@ int run_render(const RenderOptions& o) {
       throw InvalidArgument("--view: no view " + std::to_string(index) + " in split '" + split + "'");
     camera = it->second[index].camera;
     light = it->second[index].light;
+    if (o.resolution > 0) {  // the view's camera at another resolution: same field of view and aspect
+      camera.height = std::max(1, static_cast<int>(std::lround(double(camera.height) * o.resolution / camera.width)));
+      camera.width = o.resolution;
+    }
     if (model->has_environment()) environment = method::dataset_environment(o.view.substr(0, b));
   } else {
     const auto e = triple(o.eye, "--eye"), t = triple(o.target, "--target");
-    camera = Camera::look_at({e[0], e[1], e[2]}, {t[0], t[1], t[2]}, {0, 0, 1}, o.fov, o.resolution, o.resolution);
+    const int res = o.resolution > 0 ? o.resolution : 128;
+    camera = Camera::look_at({e[0], e[1], e[2]}, {t[0], t[1], t[2]}, {0, 0, 1}, o.fov, res, res);
   }
   if (o.view.empty() || o.light != std::vector<float>{0, -3, 3}) {
     const auto l = triple(o.light, "--light");
@@ -158,6 +165,7 @@ int run_render(const RenderOptions& o) {
   method::RenderSettings rs;
   rs.visibility = o.visibility;
   rs.environment = environment.get();
+  rs.spp = o.spp;
   const Image img = method::render_image(*model, camera, light, rs, [&](const Progress& p) { return bar(p); });
   bar.finish();
   write_image(o.out, img);
@@ -169,6 +177,7 @@ struct EvalOptions {
   std::string run, dataset, out, device, visibility;
   std::vector<std::string> splits;
   std::size_t max_views = 0;
+  std::uint32_t spp = 1;
   bool no_images = false;
 };
 
@@ -192,9 +201,11 @@ int run_eval(const EvalOptions& o) {
   eo.max_views = o.max_views;
   eo.write_images = !o.no_images;
   eo.visibility = o.visibility;
+  eo.spp = o.spp;
   const std::string out = o.out.empty() ? (fs::path(o.run) / "eval").string() : o.out;
   const Json meta{{"run", o.run}, {"dataset", dataset}, {"step", header.value("step", Json())},
-                  {"device", device.info().name}, {"visibility", o.visibility.empty() ? model->inference_visibility() : o.visibility}};
+                  {"device", device.info().name}, {"visibility", o.visibility.empty() ? model->inference_visibility() : o.visibility},
+                  {"spp", o.spp}};
   ProgressBar bar("eval");
   const auto views = method::evaluate(*model, dataset, out, eo, meta, [&](const Progress& p) { return bar(p); });
   bar.finish();
@@ -255,6 +266,8 @@ void add_eval_command(CLI::App& app) {
   cmd->add_flag("--no-images", o->no_images, "write only the metrics and contact sheets, not every prediction");
   cmd->add_option("--visibility", o->visibility, "network or march (default: the model's setting)")
       ->check(CLI::IsMember({"network", "march"}));
+  cmd->add_option("--spp", o->spp, "rays per pixel, averaged over an n x n grid in the pixel (1, 4, 9, ...)")
+      ->capture_default_str();
   cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
   cmd->final_callback([o] {
     if (const int code = run_eval(*o)) throw CLI::RuntimeError(code);
@@ -302,7 +315,8 @@ void add_render_command(CLI::App& app) {
                                      "view: DATASET:SPLIT:INDEX");
   cmd->add_option("--eye", o->eye, "camera position (x y z)")->expected(3);
   cmd->add_option("--target", o->target, "point the camera looks at (x y z)")->expected(3);
-  cmd->add_option("--resolution", o->resolution, "image width and height")->capture_default_str();
+  cmd->add_option("--resolution", o->resolution, "image width and height (default 128; with --view: the view's "
+                                                 "width, the height keeping its aspect)");
   cmd->add_option("--fov", o->fov, "horizontal field of view, radians")->capture_default_str();
   cmd->add_option("--light", o->light, "point light position (x y z)")->expected(3);
   cmd->add_option("--intensity", o->intensity, "light intensity in W/sr: one value (white) or r g b")->expected(1, 3);
@@ -313,6 +327,8 @@ void add_render_command(CLI::App& app) {
                   "map for --view of 'env+point' data); the model must have been trained on 'env+point' data");
   cmd->add_option("--env-scale", o->env_scale, "radiance scale of --environment")->capture_default_str();
   cmd->add_flag("--env-visible", o->env_visible, "camera rays that miss the medium see --environment");
+  cmd->add_option("--spp", o->spp, "rays per pixel, averaged over an n x n grid in the pixel (1, 4, 9, ...): "
+                                   "anti-aliased edges, like the path tracer's box filter")->capture_default_str();
   cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
   cmd->final_callback([o] {
     if (const int code = run_render(*o)) throw CLI::RuntimeError(code);

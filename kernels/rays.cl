@@ -48,12 +48,14 @@ __kernel void training_rays(const uint n_rays, const uint seed, const uint itera
 }
 
 // The rays of pixels [first, first + n_rays) of one image (row-major pixel order), for rendering in tiles.
-__kernel void image_rays(const uint n_rays, const uint first, const uint width, __global const float* restrict camera,
-                         __global const float* restrict light, __global float* restrict rays) {
+// Each ray passes through the point (ox, oy) of its pixel (0.5, 0.5: the centre).
+__kernel void image_rays(const uint n_rays, const uint first, const uint width, const float ox, const float oy,
+                         __global const float* restrict camera, __global const float* restrict light,
+                         __global float* restrict rays) {
   const uint j = get_global_id(0);
   if (j >= n_rays) return;
   const uint pixel = first + j;
-  write_ray(rays + (size_t)j * RAY_FLOATS, camera, (pixel % width) + 0.5f, (pixel / width) + 0.5f, light);
+  write_ray(rays + (size_t)j * RAY_FLOATS, camera, (pixel % width) + ox, (pixel / width) + oy, light);
 }
 
 // n directions uniform on the unit sphere from (seed, iteration, k), as an n x 3 tiled matrix.

@@ -55,11 +55,13 @@ PointLight light_from(const py::object& light) {
 }
 
 py::array_t<float> render(const method::Model& model, const Camera& camera, const py::object& light,
-                          const std::string& visibility, std::uint32_t seed, const py::object& environment) {
+                          const std::string& visibility, std::uint32_t seed, const py::object& environment,
+                          std::uint32_t spp) {
   const PointLight l = light_from(light);
   method::RenderSettings rs;
   rs.visibility = visibility;
   rs.seed = seed;
+  rs.spp = spp;
   if (!environment.is_none()) {
     if (!py::isinstance<EnvironmentLight>(environment))
       throw InvalidArgument("environment must be a relit.EnvironmentLight or None");
@@ -132,10 +134,11 @@ void bind_method(py::module_& m) {
           [](const std::string& path, const py::object& device) { return method::load_model(device_arg(device), path); },
           py::arg("path"), py::arg("device") = py::none(), "Loads the model of a checkpoint (checkpoint.relit).")
       .def("render", &render, py::arg("camera"), py::arg("light"), py::arg("visibility") = "", py::arg("seed") = 0,
-           py::arg("environment") = py::none(),
+           py::arg("environment") = py::none(), py::arg("spp") = 1,
            "Renders camera's image under the point light: float32 (height, width, 3), linear RGB. visibility:\n"
            "\"network\" or \"march\" (default: the model's setting). environment: a relit.EnvironmentLight\n"
-           "lighting the scene as well (models trained on 'env+point' data), e.g. EnvironmentLight.from_dataset(path).")
+           "lighting the scene as well (models trained on 'env+point' data), e.g. EnvironmentLight.from_dataset(path).\n"
+           "spp: rays per pixel, averaged over an n x n grid in each pixel (1, 4, 9, ...).")
       .def_property_readonly("has_environment", [](const method::Model& o) { return o.has_environment(); },
                              "whether the model was trained with an environment light ('env+point' data)")
       .def_property_readonly("method", &method::Model::method, "the method: \"ours\", \"bi\" or \"nerv\"")

@@ -180,6 +180,44 @@ TEST(Methods, ImagesRenderInTilesOfAnySize) {
   }
 }
 
+TEST(Methods, SamplesPerPixelAverageAGridInEachPixel) {
+  // spp = 4 rays through the centres of each pixel's 2 x 2 cells: with Bi et al. (deterministic per ray) the
+  // image is the 2 x 2 box-filtered image of the same camera at twice the resolution and spp = 1, and it
+  // differs from the spp = 1 image at the lower resolution (so the comparison can fail).
+  const Device dev = test::test_device();
+  const auto model = method::create_model(dev, "bi", tiny_bi());
+  const PointLight light{{2.0f, -2.0f, 3.0f}, {500.0f, 400.0f, 300.0f}};
+  const int w = 6, h = 4;
+  const auto camera = [](int width, int height) {
+    return Camera::look_at({0.3f, -2.5f, 0.8f}, {0, 0, 0}, {0, 0, 1}, 0.9f, width, height);
+  };
+  method::RenderSettings one, four;
+  four.spp = 4;
+  four.tile_rays = 7;  // tiles that cut through the samples of a row
+  const Image fine = method::render_image(*model, camera(2 * w, 2 * h), light, one);
+  const Image coarse = method::render_image(*model, camera(w, h), light, one);
+  const Image boxed = method::render_image(*model, camera(w, h), light, four);
+  double max_err = 0, max_alias = 0, max_value = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < 3; ++c) {
+        double mean = 0;
+        for (int dy = 0; dy < 2; ++dy)
+          for (int dx = 0; dx < 2; ++dx) mean += fine.pixels[((2 * y + dy) * 2 * w + 2 * x + dx) * 3 + c] / 4.0;
+        const std::size_t i = (std::size_t(y) * w + x) * 3 + c;
+        max_err = std::max(max_err, std::abs(boxed.pixels[i] - mean));
+        max_alias = std::max(max_alias, std::abs(coarse.pixels[i] - mean));
+        max_value = std::max(max_value, std::abs(mean));
+      }
+  EXPECT_LT(max_err, 1e-5 * max_value) << "largest pixel value " << max_value;
+  EXPECT_GT(max_alias, 1e-3 * max_value) << "the test scene has no detail below a pixel";
+  method::RenderSettings bad;
+  bad.spp = 3;
+  EXPECT_THROW(method::render_image(*model, camera(w, h), light, bad), InvalidArgument);
+  bad.spp = 0;
+  EXPECT_THROW(method::render_image(*model, camera(w, h), light, bad), InvalidArgument);
+}
+
 // ---- Ours + BRDF -------------------------------------------------------------------------------------------------
 
 TEST(OursBrdf, RenderGradientMatchesFiniteDifferences) {

@@ -63,6 +63,34 @@ TEST(Rays, ImageRaysMatchThePinholeModel) {
   EXPECT_NEAR(std::acos(dl.dot(to_target)), edge, 1e-5);
 }
 
+TEST(Rays, ImageRaysPassThroughTheGivenPointOfEachPixel) {
+  const Device d = test::test_device();
+  const std::uint32_t w = 7, h = 5;
+  const Camera cam = camera_at({-2, 3, 1}, 0.9f, w, h);
+  const PointLight light{{1, 2, 3}, {100, 200, 300}};
+  Buffer<float> rays(d, w * h * kRayFloats);
+  for (const std::array<float, 2> off : {std::array<float, 2>{0.25f, 0.75f}, std::array<float, 2>{0.0f, 1.0f}}) {
+    render::image_rays(d, cam, light, 0, w * h, rays, off);
+    const auto r = rays.read();
+    for (std::uint32_t p = 0; p < w * h; ++p) {
+      const Eigen::Vector3d ref = reference_dir(cam, p % w + off[0], p / w + off[1]);
+      for (int k = 0; k < 3; ++k) ASSERT_NEAR(r[p * kRayFloats + 4 + k], ref[k], 1e-6) << "pixel " << p;
+    }
+  }
+  EXPECT_THROW(render::image_rays(d, cam, light, 0, w * h, rays, {0.5f, 1.5f}), InvalidArgument);
+  EXPECT_THROW(render::image_rays(d, cam, light, 0, w * h, rays, {std::nanf(""), 0.5f}), InvalidArgument);
+}
+
+TEST(Rays, SamplesPerPixelFormAGridOfCellCentres) {
+  EXPECT_EQ(render::pixel_sample_offset(1, 0), (std::array<float, 2>{0.5f, 0.5f}));
+  const std::array<std::array<float, 2>, 4> four{{{0.25f, 0.25f}, {0.75f, 0.25f}, {0.25f, 0.75f}, {0.75f, 0.75f}}};
+  for (std::uint32_t s = 0; s < 4; ++s) EXPECT_EQ(render::pixel_sample_offset(4, s), four[s]) << "sample " << s;
+  EXPECT_FLOAT_EQ(render::pixel_sample_offset(9, 5)[0], 2.5f / 3.0f);
+  EXPECT_FLOAT_EQ(render::pixel_sample_offset(9, 5)[1], 1.5f / 3.0f);
+  for (std::uint32_t bad : {0u, 2u, 3u, 8u}) EXPECT_THROW(render::pixel_sample_offset(bad, 0), InvalidArgument) << bad;
+  EXPECT_THROW(render::pixel_sample_offset(4, 4), InvalidArgument);
+}
+
 TEST(Rays, TrainingBatchesLookUpTheirPixelsCoverAllImagesAndAreReproducible) {
   const Device d = test::test_device();
   const std::uint32_t w = 8, h = 6, n_images = 5, n_rays = 2000;

@@ -9,6 +9,13 @@ import pytest
 import relit
 from conftest import run_python
 
+
+def png_size(path):
+    with open(path, "rb") as f:
+        head = f.read(24)
+    assert head[:8] == b"\x89PNG\r\n\x1a\n"
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
 MLP = {"type": "FullyFusedMLP", "n_neurons": 16, "n_hidden_layers": 1}
 FREQ = {"type": "Frequency", "n_frequencies": 2, "include_input": True}
 CONFIG = {
@@ -46,6 +53,10 @@ def test_trainer_yields_stats_and_the_model_renders(dataset, device, tmp_path):
     assert img.shape == (8, 10, 3) and img.dtype == np.float32 and np.isfinite(img).all()
     brighter = trainer.model.render(cam, relit.PointLight((2, -3, 2), 600))
     assert np.allclose(brighter, 2 * img, rtol=1e-4, atol=1e-6)  # linear in the intensity
+    smooth = trainer.model.render(cam, relit.PointLight((2, -3, 2), 300), spp=4)  # 2 x 2 rays per pixel
+    assert smooth.shape == img.shape and np.isfinite(smooth).all() and not np.array_equal(smooth, img)
+    with pytest.raises(relit.InvalidArgument, match="square"):
+        trainer.model.render(cam, relit.PointLight((2, -3, 2), 300), spp=2)
     # The run folder: config, log, checkpoint; the checkpoint reloads to the same model.
     assert json.load(open(os.path.join(run, "config.json")))["model"]["n_features"] == 4
     lines = [json.loads(x) for x in open(os.path.join(run, "log.jsonl"))]
@@ -83,8 +94,14 @@ def test_cli_train_resume_and_render(dataset, tmp_path):
     r = run_python(["-m", "relit", "render", run, "--view", dataset + ":test:0", "--out", png])
     assert r.returncode == 0, r.stderr
     assert os.path.getsize(png) > 0
+    big = str(tmp_path / "big.png")  # a dataset view's camera at another resolution, 4 rays per pixel
+    r = run_python(["-m", "relit", "render", run, "--view", dataset + ":test:0", "--resolution", "24", "--spp", "4",
+                    "--out", big])
+    assert r.returncode == 0, r.stderr
+    (w, h), (bw, bh) = png_size(png), png_size(big)
+    assert (bw, bh) == (24, round(24 * h / w))
     report = str(tmp_path / "eval")
-    r = run_python(["-m", "relit", "eval", run, "--out", report])
+    r = run_python(["-m", "relit", "eval", run, "--out", report, "--spp", "4"])
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
     psnr = [float(x.split()[1]) for x in lines if x.startswith("PSNR ")]
@@ -92,6 +109,7 @@ def test_cli_train_resume_and_render(dataset, tmp_path):
     assert len(psnr) == 1 and len(ssim) == 1 and math.isfinite(psnr[0]) and -1 <= ssim[0] <= 1
     metrics = json.load(open(os.path.join(report, "metrics.json")))
     assert metrics["splits"]["test"]["n_views"] == 1 and metrics["meta"]["step"] == 6
+    assert metrics["meta"]["spp"] == 4
     assert abs(metrics["mean"]["psnr"] - psnr[0]) < 1e-3
     assert os.path.exists(os.path.join(report, "contact_sheet_test.png"))
     assert os.path.exists(os.path.join(report, "metrics.md"))

@@ -19,6 +19,7 @@ std::vector<report::ViewResult> evaluate(const Model& model, const std::string& 
   ProgressTracker tracker(progress, total, "views");
   RenderSettings rs;
   rs.visibility = options.visibility;
+  rs.spp = options.spp;
   for (const auto& split : splits)
     for (std::size_t i = 0; i < split.size(); ++i) {
       report::ViewResult v;

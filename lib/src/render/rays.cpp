@@ -3,6 +3,8 @@
 #include <relit/render/rays.hpp>
 #include <relit/render/volume_renderer.hpp>
 
+#include <string>
+
 
 namespace relit::render {
 
@@ -67,13 +69,25 @@ void RaySource::training_batch(std::uint32_t n_rays, std::uint32_t seed, std::ui
 }
 
 void image_rays(const Device& device, const Camera& camera, const PointLight& light, std::uint32_t first,
-                std::uint32_t n_rays, Buffer<float>& rays) {
+                std::uint32_t n_rays, Buffer<float>& rays, std::array<float, 2> offset) {
   if (rays.size() < std::size_t(n_rays) * kRayFloats) throw InvalidArgument("image_rays: ray buffer too small");
+  if (!(offset[0] >= 0.0f && offset[0] <= 1.0f && offset[1] >= 0.0f && offset[1] <= 1.0f))
+    throw InvalidArgument("image_rays: the offset in the pixel must lie in [0, 1]^2");
   const auto width = static_cast<std::uint32_t>(camera.width);
   const auto c = camera_record(camera);
   const auto l = light_record(light);
   Buffer<float> cam(device, std::vector<float>(c.begin(), c.end())), lig(device, std::vector<float>(l.begin(), l.end()));
-  device.kernel("rays.cl", "image_rays").args(n_rays, first, width, cam, lig, rays).launch(n_rays, 16);
+  device.kernel("rays.cl", "image_rays").args(n_rays, first, width, offset[0], offset[1], cam, lig, rays).launch(n_rays, 16);
+}
+
+std::array<float, 2> pixel_sample_offset(std::uint32_t spp, std::uint32_t s) {
+  std::uint32_t n = 1;
+  while (n * n < spp) ++n;
+  if (spp == 0 || n * n != spp)
+    throw InvalidArgument("samples per pixel must be a square (1, 4, 9, 16, ...): they form an n x n grid in each "
+                          "pixel; got " + std::to_string(spp));
+  if (s >= spp) throw InvalidArgument("pixel_sample_offset: sample " + std::to_string(s) + " of " + std::to_string(spp));
+  return {(static_cast<float>(s % n) + 0.5f) / static_cast<float>(n), (static_cast<float>(s / n) + 0.5f) / static_cast<float>(n)};
 }
 
 }  // namespace relit::render

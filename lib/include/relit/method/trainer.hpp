@@ -160,6 +160,9 @@ class Trainer {
 struct RenderSettings {
   std::uint32_t tile_rays = 1024;  ///< rays per pass (small tiles stay in cache)
   std::uint32_t seed = 0;          ///< draws the indirect directions
+  /// Rays per pixel, averaged: an n x n grid in each pixel (a box filter, as the path tracer's references;
+  /// anti-aliases the medium's edges). A square: 1, 4, 9, 16, ... Each sample draws its own indirect directions.
+  std::uint32_t spp = 1;
   /// "" uses the model's inference_visibility setting; "network" or "march" override it.
   std::string visibility;
   /// Light the scene with this environment map as well (a model trained on 'env+point' data; it is sampled
@@ -168,7 +171,7 @@ struct RenderSettings {
 };
 
 /// Renders `camera`'s image under `light` with the model: linear RGB (3 channels), in tiles, with progress
-/// counted in rays.
+/// counted in rays (pixels x spp).
 Image render_image(const Model& model, const Camera& camera, const PointLight& light, const RenderSettings& settings = {},
                    const ProgressCallback& progress = {});
 

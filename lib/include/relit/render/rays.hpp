@@ -42,8 +42,13 @@ class RaySource {
   Buffer<float> m_cameras, m_lights, m_images;
 };
 
-/// The rays of `n_rays` pixels of `camera`'s image starting at pixel index `first` (row-major).
+/// The rays of `n_rays` pixels of `camera`'s image starting at pixel index `first` (row-major), each through
+/// the point `offset` of its pixel (in pixels from its top-left corner; {0.5, 0.5}: the centre).
 void image_rays(const Device& device, const Camera& camera, const PointLight& light, std::uint32_t first,
-                std::uint32_t n_rays, Buffer<float>& rays);
+                std::uint32_t n_rays, Buffer<float>& rays, std::array<float, 2> offset = {0.5f, 0.5f});
+
+/// Sample `s` of the n x n grid of points that `spp` = n^2 samples per pixel form in a pixel (row-major, each
+/// at the centre of its cell; spp 1: the pixel's centre). Throws InvalidArgument unless spp is a square.
+std::array<float, 2> pixel_sample_offset(std::uint32_t spp, std::uint32_t s);
 
 }  // namespace relit::render
