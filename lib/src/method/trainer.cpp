@@ -507,7 +507,8 @@ Image render_image(const Model& model, const Camera& camera, const PointLight& l
   light.validate();
   if (settings.tile_rays == 0) throw InvalidArgument("render_image: tile_rays must be positive");
   const std::uint32_t spp = settings.spp;
-  render::pixel_sample_offset(spp, 0);  // spp must be a square
+  std::vector<std::array<float, 2>> offsets{render::pixel_sample_offset(spp, 0)};  // throws unless spp is a square
+  for (std::uint32_t s = 1; s < spp; ++s) offsets.push_back(render::pixel_sample_offset(spp, s));
   const std::string vis = settings.visibility.empty() ? model.inference_visibility() : settings.visibility;
   if (vis != "network" && vis != "march")
     throw InvalidArgument("render_image: visibility must be \"network\" or \"march\", got \"" + vis + "\"");
@@ -526,14 +527,15 @@ Image render_image(const Model& model, const Camera& camera, const PointLight& l
   const auto pass = model.make_pass();
   Buffer<float> rays(device, std::size_t(tile) * render::kRayFloats);
   Image out(camera.width, camera.height, 3);
-  std::vector<float> sample(spp > 1 ? std::size_t(tile) * 3 : 0);
+  std::vector<float> sample(std::size_t(tile) * 3);
+  const render::ImageRays image_rays(device, camera, light);
   ProgressTracker tracker(progress, std::uint64_t(total) * spp, "rays");
   for (std::uint32_t first = 0, k = 0; first < total; first += tile, ++k) {
     const std::uint32_t n = std::min(tile, total - first);
     float* dst = out.pixels.data() + std::size_t(first) * 3;
     for (std::uint32_t s = 0; s < spp; ++s) {
       const std::uint32_t iteration = k * spp + s;  // spp 1: the tile's index
-      render::image_rays(device, camera, light, first, n, rays, render::pixel_sample_offset(spp, s));
+      image_rays(first, n, rays, offsets[s]);
       if (env) {
         env->draw(settings.seed, iteration);
         env->fill_background(rays, n);
@@ -545,17 +547,11 @@ Image render_image(const Model& model, const Camera& camera, const PointLight& l
       o.march_visibility = vis == "march";
       o.env = env.get();
       model.render(*pass, rays, n, o);
-      const auto& color = model.color(*pass, model.n_colors() - 1);
-      if (spp == 1) {
-        color.read(dst, 3 * std::size_t(n));
-      } else {
-        color.read(sample.data(), 3 * std::size_t(n));
-        for (std::size_t i = 0; i < 3 * std::size_t(n); ++i) dst[i] += sample[i];
-      }
+      model.color(*pass, model.n_colors() - 1).read(sample.data(), 3 * std::size_t(n));
+      for (std::size_t i = 0; i < 3 * std::size_t(n); ++i) dst[i] += sample[i];  // out starts at 0
       tracker.update(std::uint64_t(first) * spp + std::uint64_t(n) * (s + 1));
     }
-    if (spp > 1)
-      for (std::size_t i = 0; i < 3 * std::size_t(n); ++i) dst[i] /= static_cast<float>(spp);
+    for (std::size_t i = 0; i < 3 * std::size_t(n); ++i) dst[i] /= static_cast<float>(spp);
   }
   return out;
 }

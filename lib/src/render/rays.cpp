@@ -68,16 +68,30 @@ void RaySource::training_batch(std::uint32_t n_rays, std::uint32_t seed, std::ui
       .launch(n_rays, 16);
 }
 
-void image_rays(const Device& device, const Camera& camera, const PointLight& light, std::uint32_t first,
-                std::uint32_t n_rays, Buffer<float>& rays, std::array<float, 2> offset) {
+namespace {
+template <std::size_t N>
+std::vector<float> to_vector(const std::array<float, N>& a) {
+  return {a.begin(), a.end()};
+}
+}  // namespace
+
+ImageRays::ImageRays(const Device& device, const Camera& camera, const PointLight& light)
+    : m_device(device), m_width(static_cast<std::uint32_t>(camera.width)),
+      m_camera(device, to_vector(camera_record(camera))), m_light(device, to_vector(light_record(light))) {}
+
+void ImageRays::operator()(std::uint32_t first, std::uint32_t n_rays, Buffer<float>& rays,
+                           std::array<float, 2> offset) const {
   if (rays.size() < std::size_t(n_rays) * kRayFloats) throw InvalidArgument("image_rays: ray buffer too small");
   if (!(offset[0] >= 0.0f && offset[0] <= 1.0f && offset[1] >= 0.0f && offset[1] <= 1.0f))
     throw InvalidArgument("image_rays: the offset in the pixel must lie in [0, 1]^2");
-  const auto width = static_cast<std::uint32_t>(camera.width);
-  const auto c = camera_record(camera);
-  const auto l = light_record(light);
-  Buffer<float> cam(device, std::vector<float>(c.begin(), c.end())), lig(device, std::vector<float>(l.begin(), l.end()));
-  device.kernel("rays.cl", "image_rays").args(n_rays, first, width, offset[0], offset[1], cam, lig, rays).launch(n_rays, 16);
+  m_device.kernel("rays.cl", "image_rays")
+      .args(n_rays, first, m_width, offset[0], offset[1], m_camera, m_light, rays)
+      .launch(n_rays, 16);
+}
+
+void image_rays(const Device& device, const Camera& camera, const PointLight& light, std::uint32_t first,
+                std::uint32_t n_rays, Buffer<float>& rays, std::array<float, 2> offset) {
+  ImageRays(device, camera, light)(first, n_rays, rays, offset);
 }
 
 std::array<float, 2> pixel_sample_offset(std::uint32_t spp, std::uint32_t s) {

@@ -42,8 +42,22 @@ class RaySource {
   Buffer<float> m_cameras, m_lights, m_images;
 };
 
-/// The rays of `n_rays` pixels of `camera`'s image starting at pixel index `first` (row-major), each through
-/// the point `offset` of its pixel (in pixels from its top-left corner; {0.5, 0.5}: the centre).
+/// The rays of one camera's image under one light, tile by tile: the camera and light are uploaded once.
+class ImageRays {
+ public:
+  ImageRays(const Device& device, const Camera& camera, const PointLight& light);
+  /// The rays of `n_rays` pixels starting at pixel index `first` (row-major), each through the point `offset`
+  /// of its pixel (in pixels from its top-left corner; {0.5, 0.5}: the centre).
+  void operator()(std::uint32_t first, std::uint32_t n_rays, Buffer<float>& rays,
+                  std::array<float, 2> offset = {0.5f, 0.5f}) const;
+
+ private:
+  Device m_device;
+  std::uint32_t m_width;
+  Buffer<float> m_camera, m_light;
+};
+
+/// ImageRays for a single tile.
 void image_rays(const Device& device, const Camera& camera, const PointLight& light, std::uint32_t first,
                 std::uint32_t n_rays, Buffer<float>& rays, std::array<float, 2> offset = {0.5f, 0.5f});
 
