@@ -47,8 +47,8 @@ struct BenchOptions {
   std::vector<std::string> compare;
   std::uint32_t repeats = 5;
   bool quick = false;
-  std::string inject_error;
-  std::string filter;        // run only the cases whose name contains this  // a case whose result is corrupted before verification (tests the failure path)
+  std::string inject_error;  // a case whose result is corrupted before verification (tests the failure path)
+  std::string filter;        // run only the cases whose name contains this
 };
 
 // One benchmark case. run() does one unit of work and waits for the device; verify() checks the results of the

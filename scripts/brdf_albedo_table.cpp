@@ -48,11 +48,11 @@ int main() {
       "// r = i/%d and columns of sqrt(mu) = j/%d (mu = n.w); E_avg(r) = 2 int_0^1 E(mu; r) mu dmu of the bilinear\n"
       "// interpolant. Plain number lists, so the kernels and the host reference read the same values.\n"
       "#ifndef RELIT_BRDF_ALBEDO_CLH\n#define RELIT_BRDF_ALBEDO_CLH\n\n#define RELIT_BRDF_ALBEDO_N %d\n\n"
-      "#define RELIT_BRDF_ALBEDO_TABLE",
+      "// clang-format off\n#define RELIT_BRDF_ALBEDO_TABLE",
       n - 1, n - 1, n);
   for (int i = 0; i < n * n; ++i)
-    print_float(table[i], i % 8 == 0 ? " \\\n  " : " ", i + 1 < n * n ? "," : "");
+    print_float(table[i], i % 6 == 0 ? " \\\n  " : " ", i + 1 < n * n ? "," : "");
   std::printf("\n\n#define RELIT_BRDF_ALBEDO_AVERAGE");
-  for (int i = 0; i < n; ++i) print_float(average[i], i % 8 == 0 ? " \\\n  " : " ", i + 1 < n ? "," : "");
-  std::printf("\n\n#endif\n");
+  for (int i = 0; i < n; ++i) print_float(average[i], i % 6 == 0 ? " \\\n  " : " ", i + 1 < n ? "," : "");
+  std::printf("\n// clang-format on\n\n#endif\n");
 }
