@@ -55,9 +55,9 @@ struct BenchOptions {
 // last run() against a reference and returns the worst error over its tolerance (<= 1 passes).
 struct Case {
   std::string name, family;
-  double flops = 0;        // per run, 0 when not meaningful
-  double work = 0;         // units per run (samples, rays, steps...)
-  std::string unit;        // "samples", ...
+  double flops = 0;  // per run, 0 when not meaningful
+  double work = 0;   // units per run (samples, rays, steps...)
+  std::string unit;  // "samples", ...
   std::function<void()> run;
   std::function<double()> verify;
   std::function<void()> corrupt;  // makes the last result wrong (--inject-error)
@@ -180,8 +180,8 @@ struct MlpSpec {
 
 void add_mlp(std::vector<Case>& cases, const Device& device, bool quick) {
   const std::uint32_t batch = quick ? 2048 : 76800, check_rows = 128;
-  for (const MlpSpec& spec : {MlpSpec{"w64", 32, 64, 3, 16, 0}, MlpSpec{"w128", 32, 128, 4, 16, 0},
-                              MlpSpec{"w256", 63, 256, 8, 16, 4}}) {
+  for (const MlpSpec& spec :
+       {MlpSpec{"w64", 32, 64, 3, 16, 0}, MlpSpec{"w128", 32, 128, 4, 16, 0}, MlpSpec{"w256", 63, 256, 8, 16, 4}}) {
     Json cfg = {{"type", "FullyFusedMLP"}, {"n_neurons", spec.width}, {"n_hidden_layers", spec.hidden}};
     if (spec.skip) cfg["skip_layers"] = {spec.skip};
     std::shared_ptr<nn::Network> net = nn::create_network(cfg, spec.n_in, spec.n_out);
@@ -200,7 +200,8 @@ void add_mlp(std::vector<Case>& cases, const Device& device, bool quick) {
     auto dx = std::make_shared<nn::BatchMatrix>(device, batch, spec.n_in);
     std::shared_ptr<nn::Workspace> ws = net->make_workspace(device);
     double flops = 0;
-    for (std::uint32_t l = 0; l <= mlp->n_hidden_layers(); ++l) flops += 2.0 * mlp->layer_inputs(l) * mlp->layer_outputs(l);
+    for (std::uint32_t l = 0; l <= mlp->n_hidden_layers(); ++l)
+      flops += 2.0 * mlp->layer_inputs(l) * mlp->layer_outputs(l);
     flops *= batch;
 
     Case f;
@@ -266,8 +267,8 @@ void add_mlp(std::vector<Case>& cases, const Device& device, bool quick) {
 
 void add_hashgrid(std::vector<Case>& cases, const Device& device, bool quick) {
   // The grid: 16 levels x 2 features, 2^19 entries per level, 3-D positions.
-  const Json cfg = {{"type", "HashGrid"}, {"n_levels", 16}, {"n_features_per_level", 2}, {"log2_hashmap_size", 19},
-                    {"base_resolution", 16}, {"per_level_scale", 1.5}};
+  const Json cfg = {{"type", "HashGrid"},      {"n_levels", 16},        {"n_features_per_level", 2},
+                    {"log2_hashmap_size", 19}, {"base_resolution", 16}, {"per_level_scale", 1.5}};
   std::shared_ptr<nn::Encoding> enc = nn::create_encoding(cfg, 3);
   const auto* grid = dynamic_cast<const nn::HashGridEncoding*>(enc.get());
   const std::uint32_t batch = quick ? 4096 : 76800, check_rows = 256;
@@ -340,7 +341,8 @@ void add_adam(std::vector<Case>& cases, const Device& device, bool quick) {
   c.verify = [=] {
     const auto got = params->read();
     std::vector<double> want(n);
-    for (std::size_t i = 0; i < n; ++i) want[i] = double(p0[i]) - 1e-2 * double(g[i]) / (std::fabs(double(g[i])) + 1e-15);
+    for (std::size_t i = 0; i < n; ++i)
+      want[i] = double(p0[i]) - 1e-2 * double(g[i]) / (std::fabs(double(g[i])) + 1e-15);
     return worst_ratio(got, want, 1e-5);
   };
   c.corrupt = [=] { params->fill(0.0f); };
@@ -407,7 +409,8 @@ void add_renderer(std::vector<Case>& cases, const Device& device, bool quick) {
     const auto w = small.dcol->read();
     const auto dp = small.dprops->download_row_major();
     auto v = random_floats(s.props.size(), 22);
-    for (std::size_t i = 0; i < v.size(); ++i) if (i % s.cols() == render::kVisibility) v[i] = 0.0f;
+    for (std::size_t i = 0; i < v.size(); ++i)
+      if (i % s.cols() == render::kVisibility) v[i] = 0.0f;
     double analytic = 0;
     for (std::size_t i = 0; i < v.size(); ++i) analytic += double(dp[i]) * v[i];
     const double h = 1e-4;
@@ -446,8 +449,8 @@ void add_pathtracer(std::vector<Case>& cases, const Device& device, bool quick) 
 // ---- end-to-end cases --------------------------------------------------------------------------------------
 
 // One training iteration of a preset (1200 rays x 64 samples; the baselines' fast presets too) and one relit
-// frame (128^2), on a small generated dataset (the cost of a step does not depend on the images' size). Verified: the step's losses are finite and
-// a second trainer from the same seed reproduces them exactly (training is deterministic).
+// frame (128^2), on a small generated dataset (the cost of a step does not depend on the images' size). Verified: the
+// step's losses are finite and a second trainer from the same seed reproduces them exactly (training is deterministic).
 void add_e2e(std::vector<Case>& cases, const Device& device, bool quick, const std::string& data_dir) {
   for (const std::string preset : {"fast", "paper", "bi-fast", "nerv-fast", "ours_brdf-fast"}) {
     Json cfg = method::preset(preset);
@@ -537,8 +540,8 @@ Json result_json(const Result& r, double peak) {
 
 void print_table(const std::string& device, const std::vector<Json>& rows) {
   std::printf("\n%s\n", device.c_str());
-  std::printf("  %-28s %-7s %10s %11s %19s %9s %7s %16s\n", "case", "status", "first [s]", "median [ms]",
-              "spread [ms]", "GFLOP/s", "% peak", "throughput");
+  std::printf("  %-28s %-7s %10s %11s %19s %9s %7s %16s\n", "case", "status", "first [s]", "median [ms]", "spread [ms]",
+              "GFLOP/s", "% peak", "throughput");
   for (const Json& j : rows) {
     if (j["status"] != "ok") {
       std::printf("  %-28s FAILED  %s\n", j["name"].get<std::string>().c_str(), j["error"].get<std::string>().c_str());
@@ -591,7 +594,8 @@ int run_bench(const BenchOptions& o) {
   if (o.suite != "kernels" && o.suite != "e2e" && o.suite != "all")
     throw InvalidArgument("--suite must be kernels, e2e or all, got '" + o.suite + "'");
   if (o.repeats == 0) throw InvalidArgument("--repeats must be at least 1");
-  const std::vector<Device> devices = o.device.empty() ? std::vector<Device>{Device::select()} : Device::select_all(o.device);
+  const std::vector<Device> devices =
+      o.device.empty() ? std::vector<Device>{Device::select()} : Device::select_all(o.device);
   Json doc = {{"format", "relit-bench"},
               {"version", 1},
               {"relit_version", relit::version()},
@@ -672,19 +676,25 @@ int run_bench(const BenchOptions& o) {
 
 void add_bench_command(CLI::App& app) {
   auto o = std::make_shared<BenchOptions>();
-  auto* cmd = app.add_subcommand("bench", "benchmark relit's kernels and end-to-end steps on OpenCL devices "
-                                          "(each result verified before it is timed)");
+  auto* cmd = app.add_subcommand("bench",
+                                 "benchmark relit's kernels and end-to-end steps on OpenCL devices "
+                                 "(each result verified before it is timed)");
   cmd->add_option("--device,-d", o->device, "device selector, or 'all' (default: relit's choice)");
-  cmd->add_option("--suite", o->suite, "kernels, e2e or all")->capture_default_str()
+  cmd->add_option("--suite", o->suite, "kernels, e2e or all")
+      ->capture_default_str()
       ->check(CLI::IsMember({"kernels", "e2e", "all"}));
   cmd->add_option("--json", o->json, "write every number to this JSON file");
   cmd->add_option("--repeats", o->repeats, "timed runs per case (median and spread)")->capture_default_str();
   cmd->add_option("--filter", o->filter, "run only the cases whose name contains this text");
   cmd->add_flag("--quick", o->quick, "small sizes: checks that everything runs and verifies (seconds)");
-  cmd->add_option("--compare", o->compare, "print the ratios between two result files A B (A / B of the median "
-                                           "times: > 1 means B is faster)")->expected(2);
-  cmd->add_option("--inject-error", o->inject_error, "corrupt this case's result before verification (tests the "
-                                                     "failure path)")->group("");
+  cmd->add_option("--compare", o->compare,
+                  "print the ratios between two result files A B (A / B of the median "
+                  "times: > 1 means B is faster)")
+      ->expected(2);
+  cmd->add_option("--inject-error", o->inject_error,
+                  "corrupt this case's result before verification (tests the "
+                  "failure path)")
+      ->group("");
   cmd->final_callback([o] {
     if (const int code = run_bench(*o)) throw CLI::RuntimeError(code);
   });

@@ -19,9 +19,12 @@ namespace {
 std::string bytes_text(std::uint64_t bytes) {
   std::ostringstream s;
   s << std::fixed << std::setprecision(1);
-  if (bytes >= (1ull << 30)) s << bytes / double(1ull << 30) << " GiB";
-  else if (bytes >= (1ull << 20)) s << bytes / double(1ull << 20) << " MiB";
-  else s << bytes / 1024.0 << " KiB";
+  if (bytes >= (1ull << 30))
+    s << bytes / double(1ull << 30) << " GiB";
+  else if (bytes >= (1ull << 20))
+    s << bytes / double(1ull << 20) << " MiB";
+  else
+    s << bytes / 1024.0 << " KiB";
   return s.str();
 }
 
@@ -61,14 +64,25 @@ int run_devices(const Options& o) {
     }
     all_ok = all_ok && failed == 0;
     if (o.json) {
-      nlohmann::json d = {{"index", i.index}, {"platform_index", i.platform_index}, {"device_index", i.device_index},
-                          {"platform", i.platform_name}, {"platform_version", i.platform_version},
-                          {"name", i.name}, {"vendor", i.vendor}, {"type", i.type}, {"version", i.version},
-                          {"driver_version", i.driver_version}, {"opencl_c_version", i.opencl_c_version},
-                          {"compute_units", i.compute_units}, {"max_clock_mhz", i.max_clock_mhz},
-                          {"global_memory", i.global_memory}, {"max_allocation", i.max_allocation},
-                          {"local_memory", i.local_memory}, {"local_memory_is_global", i.local_memory_is_global},
-                          {"max_work_group_size", i.max_work_group_size}, {"fp64", i.fp64},
+      nlohmann::json d = {{"index", i.index},
+                          {"platform_index", i.platform_index},
+                          {"device_index", i.device_index},
+                          {"platform", i.platform_name},
+                          {"platform_version", i.platform_version},
+                          {"name", i.name},
+                          {"vendor", i.vendor},
+                          {"type", i.type},
+                          {"version", i.version},
+                          {"driver_version", i.driver_version},
+                          {"opencl_c_version", i.opencl_c_version},
+                          {"compute_units", i.compute_units},
+                          {"max_clock_mhz", i.max_clock_mhz},
+                          {"global_memory", i.global_memory},
+                          {"max_allocation", i.max_allocation},
+                          {"local_memory", i.local_memory},
+                          {"local_memory_is_global", i.local_memory_is_global},
+                          {"max_work_group_size", i.max_work_group_size},
+                          {"fp64", i.fp64},
                           {"extensions", i.extensions}};
       if (o.check) {
         d["kernels"] = nlohmann::json::array();
@@ -114,8 +128,10 @@ int run_devices(const Options& o) {
 
 void add_devices_command(CLI::App& app) {
   auto o = std::make_shared<Options>();
-  auto* cmd = app.add_subcommand("devices", "list OpenCL platforms and devices, and check that relit's kernels build on each");
-  cmd->add_option("--device,-d", o->selector, "only devices matching this selector (index, platform:device, or name part)");
+  auto* cmd =
+      app.add_subcommand("devices", "list OpenCL platforms and devices, and check that relit's kernels build on each");
+  cmd->add_option("--device,-d", o->selector,
+                  "only devices matching this selector (index, platform:device, or name part)");
   cmd->add_flag("--json", o->json, "print JSON instead of a table");
   cmd->add_flag("!--no-check", o->check, "skip building relit's kernels");
   cmd->final_callback([o] {

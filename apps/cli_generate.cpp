@@ -22,11 +22,16 @@ struct Options {
 
 int run_generate(Options& o) {
   DatasetSettings& s = o.settings;
-  if (o.intensity.size() == 1) s.intensity_min = s.intensity_max = o.intensity[0];
-  else if (o.intensity.size() == 2) s.intensity_min = o.intensity[0], s.intensity_max = o.intensity[1];
-  else if (!o.intensity.empty()) throw InvalidArgument("--intensity takes one value (fixed) or two (a range)");
-  if (o.light_distance.size() == 2) s.light_distance_min = o.light_distance[0], s.light_distance_max = o.light_distance[1];
-  else if (!o.light_distance.empty()) throw InvalidArgument("--light-distance takes two values (a range)");
+  if (o.intensity.size() == 1)
+    s.intensity_min = s.intensity_max = o.intensity[0];
+  else if (o.intensity.size() == 2)
+    s.intensity_min = o.intensity[0], s.intensity_max = o.intensity[1];
+  else if (!o.intensity.empty())
+    throw InvalidArgument("--intensity takes one value (fixed) or two (a range)");
+  if (o.light_distance.size() == 2)
+    s.light_distance_min = o.light_distance[0], s.light_distance_max = o.light_distance[1];
+  else if (!o.light_distance.empty())
+    throw InvalidArgument("--light-distance takes two values (a range)");
   s.validate();
   const Device device = Device::select(o.device);
   const Scene scene = Scene::builtin_or_file(o.scene, s.seed, o.scene_resolution);
@@ -50,29 +55,37 @@ void add_generate_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--out,-o", o->out, "output folder (must not exist unless --overwrite)")->required();
   cmd->add_option("--lighting", s.lighting, "lighting protocol: point, env+point")
-      ->check(CLI::IsMember({"point", "env+point"}))->capture_default_str();
-  cmd->add_option("--seed", s.seed, "random seed (views, lights, path tracing, procedural scene)")->capture_default_str();
+      ->check(CLI::IsMember({"point", "env+point"}))
+      ->capture_default_str();
+  cmd->add_option("--seed", s.seed, "random seed (views, lights, path tracing, procedural scene)")
+      ->capture_default_str();
   cmd->add_option("--resolution", s.resolution, "image width and height in pixels")->capture_default_str();
   cmd->add_option("--train", s.train, "training views")->capture_default_str();
   cmd->add_option("--val", s.val, "validation views")->capture_default_str();
   cmd->add_option("--test", s.test, "test views")->capture_default_str();
   cmd->add_option("--spp", s.spp, "path-traced samples per pixel")->capture_default_str();
-  cmd->add_option("--test-spp", s.test_spp, "samples per pixel of the test splits (0: --spp); the references that "
-                                            "evaluation compares with")->capture_default_str();
+  cmd->add_option("--test-spp", s.test_spp,
+                  "samples per pixel of the test splits (0: --spp); the references that "
+                  "evaluation compares with")
+      ->capture_default_str();
   cmd->add_option("--max-bounces", s.max_bounces, "scattering events per path (0 = unlimited)")->capture_default_str();
-  cmd->add_option("--intensity", o->intensity, "point light intensity in W/sr: one value, or two for a range (default 600)")
+  cmd->add_option("--intensity", o->intensity,
+                  "point light intensity in W/sr: one value, or two for a range (default 600)")
       ->expected(1, 2);
   cmd->add_option("--light-distance", o->light_distance, "range of light distances from the centre (default 3 5)")
       ->expected(2);
   cmd->add_option("--camera-distance", s.camera_distance, "camera distance from the centre")->capture_default_str();
-  cmd->add_option("--fov", s.camera_angle_x, "horizontal field of view, radians (camera_angle_x)")->capture_default_str();
+  cmd->add_option("--fov", s.camera_angle_x, "horizontal field of view, radians (camera_angle_x)")
+      ->capture_default_str();
   cmd->add_flag("--generalization", s.generalization,
                 "also write test sets at light distances 3, 5, 7, 10 and intensities 400, 800, 1200, 1600");
-  cmd->add_option("--generalization-views", s.generalization_views, "views per generalisation test set")->capture_default_str();
+  cmd->add_option("--generalization-views", s.generalization_views, "views per generalisation test set")
+      ->capture_default_str();
   cmd->add_option("--env-scale", s.env_scale, "env+point: scale of the procedural sky (scenes may bring their own map)")
       ->capture_default_str();
   cmd->add_flag("--env-visible", s.env_visible, "camera rays that miss the object see the environment");
-  cmd->add_option("--scene-resolution", o->scene_resolution, "voxels per side of a built-in scene's grid")->capture_default_str();
+  cmd->add_option("--scene-resolution", o->scene_resolution, "voxels per side of a built-in scene's grid")
+      ->capture_default_str();
   cmd->add_flag("!--no-previews", s.previews, "skip the PNG previews");
   cmd->add_flag("--overwrite", s.overwrite, "replace an existing output folder once the new dataset is complete");
   cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");

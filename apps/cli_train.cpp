@@ -49,8 +49,9 @@ int run_train(const TrainOptions& o) {
     config.erase("dataset");
   } else {
     if (fs::exists(checkpoint))
-      throw IOError(o.out + " already holds a run (checkpoint.relit); pass --resume to continue it or choose "
-                            "another --out");
+      throw IOError(o.out +
+                    " already holds a run (checkpoint.relit); pass --resume to continue it or choose "
+                    "another --out");
     config = method::load_run_config(method::config_for_method(o.config, o.method));
     method::set_method(config, o.method, o.config);
   }
@@ -59,11 +60,11 @@ int run_train(const TrainOptions& o) {
   method::Trainer trainer(device, o.dataset, config);
   if (o.profile) {
     std::cout << "per-stage time of one step (mean of " << o.profile << " steps, " << trainer.settings().batch_rays
-              << " rays, method " << trainer.model().method() << ") on " << device.info().name
-              << ":\n";
+              << " rays, method " << trainer.model().method() << ") on " << device.info().name << ":\n";
     double total = 0;
     for (const auto& [stage, ms] : trainer.profile(o.profile)) {
-      std::cout << "  " << stage << std::string(stage.size() < 34 ? 34 - stage.size() : 1, ' ') << fixed(ms, 2) << " ms\n";
+      std::cout << "  " << stage << std::string(stage.size() < 34 ? 34 - stage.size() : 1, ' ') << fixed(ms, 2)
+                << " ms\n";
       total += ms;
     }
     std::cout << "  total" << std::string(29, ' ') << fixed(total, 2) << " ms\n";
@@ -158,8 +159,8 @@ int run_render(const RenderOptions& o) {
   if (o.environment == "none") {
     environment.reset();
   } else if (!o.environment.empty()) {
-    environment = std::make_shared<const EnvironmentLight>(read_image(o.environment), o.env_scale, o.env_visible,
-                                                           o.environment);
+    environment =
+        std::make_shared<const EnvironmentLight>(read_image(o.environment), o.env_scale, o.env_visible, o.environment);
   }
   ProgressBar bar("render");
   method::RenderSettings rs;
@@ -203,13 +204,17 @@ int run_eval(const EvalOptions& o) {
   eo.visibility = o.visibility;
   eo.spp = o.spp;
   const std::string out = o.out.empty() ? (fs::path(o.run) / "eval").string() : o.out;
-  const Json meta{{"run", o.run}, {"dataset", dataset}, {"step", header.value("step", Json())},
-                  {"device", device.info().name}, {"visibility", o.visibility.empty() ? model->inference_visibility() : o.visibility},
+  const Json meta{{"run", o.run},
+                  {"dataset", dataset},
+                  {"step", header.value("step", Json())},
+                  {"device", device.info().name},
+                  {"visibility", o.visibility.empty() ? model->inference_visibility() : o.visibility},
                   {"spp", o.spp}};
   ProgressBar bar("eval");
   const auto views = method::evaluate(*model, dataset, out, eo, meta, [&](const Progress& p) { return bar(p); });
   bar.finish();
-  std::cout << report::format_summary_lines(views) << "report written to " << out << " (metrics.json, metrics.md, contact sheets)\n";
+  std::cout << report::format_summary_lines(views) << "report written to " << out
+            << " (metrics.json, metrics.md, contact sheets)\n";
   return 0;
 }
 
@@ -233,7 +238,8 @@ int run_demo(const DemoOptions& o) {
     s.generalization = true;
     s.generalization_views = 6;
     ProgressBar bar("generate");
-    generate_dataset(device, Scene::builtin_or_file("cloud", s.seed, 64), dataset, s, [&](const Progress& p) { return bar(p); });
+    generate_dataset(device, Scene::builtin_or_file("cloud", s.seed, 64), dataset, s,
+                     [&](const Progress& p) { return bar(p); });
     bar.finish();
   } else {
     std::cerr << "[1/3] dataset " << dataset << " exists, reusing it\n";
@@ -257,7 +263,8 @@ int run_demo(const DemoOptions& o) {
 
 void add_eval_command(CLI::App& app) {
   auto o = std::make_shared<EvalOptions>();
-  auto* cmd = app.add_subcommand("eval", "relight a run's test views and report PSNR/SSIM (JSON, Markdown, contact sheets)");
+  auto* cmd =
+      app.add_subcommand("eval", "relight a run's test views and report PSNR/SSIM (JSON, Markdown, contact sheets)");
   cmd->add_option("run", o->run, "run folder written by relit train")->required();
   cmd->add_option("--dataset", o->dataset, "dataset folder (default: the run's)");
   cmd->add_option("--split", o->splits, "splits to evaluate (default: test and every test_* set)");
@@ -276,8 +283,9 @@ void add_eval_command(CLI::App& app) {
 
 void add_demo_command(CLI::App& app) {
   auto o = std::make_shared<DemoOptions>();
-  auto* cmd = app.add_subcommand("demo", "the main job: generate the default cloud, train the fast preset, relight the "
-                                         "test views, print PSNR/SSIM and write images");
+  auto* cmd = app.add_subcommand("demo",
+                                 "the main job: generate the default cloud, train the fast preset, relight the "
+                                 "test views, print PSNR/SSIM and write images");
   cmd->add_option("--out,-o", o->out, "demo folder (data/cloud, run/, run/eval/); reruns reuse what is there")
       ->capture_default_str();
   cmd->add_option("--steps", o->steps, "training steps (default: the fast preset's)");
@@ -311,12 +319,14 @@ void add_render_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("render", "relight a trained run: render a camera under a point light");
   cmd->add_option("run", o->run, "run folder written by relit train")->required();
   cmd->add_option("--out,-o", o->out, "output image (.png: sRGB 8-bit, .exr: linear float)")->required();
-  cmd->add_option("--view", o->view, "use the camera (and light, unless --light/--intensity are given) of a dataset "
-                                     "view: DATASET:SPLIT:INDEX");
+  cmd->add_option("--view", o->view,
+                  "use the camera (and light, unless --light/--intensity are given) of a dataset "
+                  "view: DATASET:SPLIT:INDEX");
   cmd->add_option("--eye", o->eye, "camera position (x y z)")->expected(3);
   cmd->add_option("--target", o->target, "point the camera looks at (x y z)")->expected(3);
-  cmd->add_option("--resolution", o->resolution, "image width and height (default 128; with --view: the view's "
-                                                 "width, the height keeping its aspect)");
+  cmd->add_option("--resolution", o->resolution,
+                  "image width and height (default 128; with --view: the view's "
+                  "width, the height keeping its aspect)");
   cmd->add_option("--fov", o->fov, "horizontal field of view, radians")->capture_default_str();
   cmd->add_option("--light", o->light, "point light position (x y z)")->expected(3);
   cmd->add_option("--intensity", o->intensity, "light intensity in W/sr: one value (white) or r g b")->expected(1, 3);
@@ -327,8 +337,10 @@ void add_render_command(CLI::App& app) {
                   "map for --view of 'env+point' data); the model must have been trained on 'env+point' data");
   cmd->add_option("--env-scale", o->env_scale, "radiance scale of --environment")->capture_default_str();
   cmd->add_flag("--env-visible", o->env_visible, "camera rays that miss the medium see --environment");
-  cmd->add_option("--spp", o->spp, "rays per pixel, averaged over an n x n grid in the pixel (1, 4, 9, ...): "
-                                   "anti-aliased edges, like the path tracer's box filter")->capture_default_str();
+  cmd->add_option("--spp", o->spp,
+                  "rays per pixel, averaged over an n x n grid in the pixel (1, 4, 9, ...): "
+                  "anti-aliased edges, like the path tracer's box filter")
+      ->capture_default_str();
   cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
   cmd->final_callback([o] {
     if (const int code = run_render(*o)) throw CLI::RuntimeError(code);

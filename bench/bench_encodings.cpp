@@ -80,8 +80,10 @@ void grid_visit(const HashGridEncoding& enc, const float* x, Visit visit) {
       double w = 1;
       for (std::uint32_t d = 0; d < dims; ++d) {
         const std::uint32_t v = cell[d] + ((c >> d) & 1);
-        if (L.hashed) index ^= v * HashGridEncoding::kPrimes[d];
-        else index += v * stride;
+        if (L.hashed)
+          index ^= v * HashGridEncoding::kPrimes[d];
+        else
+          index += v * stride;
         stride *= L.res;
         w *= ((c >> d) & 1) ? frac[d] : 1 - frac[d];
       }
@@ -177,8 +179,10 @@ AccessRate random_access_rate(const Device& device, std::uint64_t bytes, std::ui
       want[e * 2 + 1] += 1.0f;
     }
   const std::vector<float> got = owned.read();
-  for (std::size_t i = 0; i < want.size(); ++i) err = std::max(err, std::abs(got[(items - 1) * want.size() + i] - double(want[i])));
-  const std::string what = std::to_string(bytes >> 10) + " KiB" + (tables > 1 ? " x " + std::to_string(tables) + " in turn" : "") +
+  for (std::size_t i = 0; i < want.size(); ++i)
+    err = std::max(err, std::abs(got[(items - 1) * want.size() + i] - double(want[i])));
+  const std::string what = std::to_string(bytes >> 10) + " KiB" +
+                           (tables > 1 ? " x " + std::to_string(tables) + " in turn" : "") +
                            (prefetch ? ", next prefetched" : "");
   ok &= check(err == 0, "random access " + what + " (exact counts)", err, report);
   AccessRate r{bytes, tables, prefetch};
@@ -205,12 +209,9 @@ struct Rates {
 };
 
 bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Json& report) {
-  const Json cfg = {{"type", "HashGrid"},
-                    {"n_levels", 16},
-                    {"n_features_per_level", 2},
-                    {"log2_hashmap_size", a.smoke ? 14 : a.log2_hashmap_size},
-                    {"base_resolution", 16},
-                    {"per_level_scale", std::exp2(7.0 / 15.0)}};
+  const Json cfg = {{"type", "HashGrid"},        {"n_levels", 16},
+                    {"n_features_per_level", 2}, {"log2_hashmap_size", a.smoke ? 14 : a.log2_hashmap_size},
+                    {"base_resolution", 16},     {"per_level_scale", std::exp2(7.0 / 15.0)}};
   auto base = nn::create_encoding(cfg, 3);
   const auto& enc = dynamic_cast<const HashGridEncoding&>(*base);
   std::vector<float> init(enc.n_params());
@@ -218,7 +219,8 @@ bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Js
   for (float& v : init) v *= 1e4f;  // O(1) values, so the check is meaningful
   Buffer<float> params(device, init), grads(device, enc.n_params());
   const std::vector<float> xs = ray_samples(a.batch, 2);
-  BatchMatrix in(device, a.batch, 3), out(device, a.batch, enc.n_output_dims()), d_out(device, a.batch, enc.n_output_dims());
+  BatchMatrix in(device, a.batch, 3), out(device, a.batch, enc.n_output_dims()),
+      d_out(device, a.batch, enc.n_output_dims());
   in.upload_row_major(xs);
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> u(-1, 1);
@@ -240,7 +242,8 @@ bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Js
     });
   double err = 0, gerr = 0, gscale = 0;
   for (double v : ref_g) gscale = std::max(gscale, std::abs(v));
-  for (std::size_t i = 0; i < got.size(); ++i) err = std::max(err, std::abs(got[i] - ref_out[i]) / (1.0 + std::abs(ref_out[i])));  // table values are O(1)
+  for (std::size_t i = 0; i < got.size(); ++i)
+    err = std::max(err, std::abs(got[i] - ref_out[i]) / (1.0 + std::abs(ref_out[i])));  // table values are O(1)
   for (std::size_t i = 0; i < got_g.size(); ++i)
     gerr = std::max(gerr, std::abs(got_g[i] - ref_g[i]) / (std::abs(ref_g[i]) + 1e-3 * gscale));
   ok &= check(err <= 1e-5, "HashGrid forward (relative to 1 + |value|)", err, report);
@@ -248,14 +251,25 @@ bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Js
   if (!ok || a.smoke) return ok;
 
   double fwd_cpu = 0, bwd_cpu = 0, both_cpu = 0;
-  const double fwd = median_time(device, a.reps, [&] { enc.forward(device, {&params, 0}, in, out, 0, nullptr); }, &fwd_cpu);
-  const double bwd = median_time(device, a.reps, [&] {
-    enc.backward(device, {&params, 0}, in, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
-  }, &bwd_cpu);
-  const double both = median_time(device, a.reps, [&] {
-    enc.forward(device, {&params, 0}, in, out, 0, nullptr);
-    enc.backward(device, {&params, 0}, in, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
-  }, &both_cpu);
+  const double fwd = median_time(
+      device, a.reps,
+      [&] {
+        enc.forward(device, {&params, 0}, in, out, 0, nullptr);
+      },
+      &fwd_cpu);
+  const double bwd = median_time(
+      device, a.reps,
+      [&] {
+        enc.backward(device, {&params, 0}, in, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
+      },
+      &bwd_cpu);
+  const double both = median_time(
+      device, a.reps,
+      [&] {
+        enc.forward(device, {&params, 0}, in, out, 0, nullptr);
+        enc.backward(device, {&params, 0}, in, d_out, 0, {&grads, 0}, false, nullptr, nullptr);
+      },
+      &both_cpu);
   // Same grid, samples in random order over the cube (no ray coherence), for comparison.
   std::vector<float> shuffled = xs;
   for (float& v : shuffled) v = (u(rng) + 1) / 2;
@@ -287,7 +301,7 @@ bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Js
     const auto& L = enc.levels()[l];
     const std::uint64_t bytes = static_cast<std::uint64_t>(L.size) * enc.options().n_features_per_level * 4;
     const bool cached = bytes <= rates.cached.bytes;
-    const AccessRate& t = rates.in_turn, &p = rates.in_turn_prefetched;
+    const AccessRate &t = rates.in_turn, &p = rates.in_turn_prefetched;
     const double read = cached ? rates.cached.read_per_s : std::max(t.read_per_s, p.read_per_s);
     const double rmw = cached ? rates.cached.rmw_per_s : std::max(t.rmw_per_s, p.rmw_per_s);
     const AccessRate& w = cached ? rates.cached : rates.warm;
@@ -298,14 +312,14 @@ bool bench_hash_grid(const Device& device, const Args& a, const Rates& rates, Js
     total_lines += lines[l];
     per_level.push_back({{"table_bytes", bytes}, {"hashed", L.hashed}, {"lines_per_sample", lines[l]}});
   }
-  report["hash_grid_roofline"] = {{"lines_per_sample", total_lines},
-                                  {"levels", per_level},
-                                  {"forward_bound_samples_per_s", 1 / fwd_s},
-                                  {"backward_params_bound_samples_per_s", 1 / bwd_s},
-                                  {"forward_backward_bound_samples_per_s", 1 / (fwd_s + bwd_s)},
-                                  {"forward_backward_fraction_of_bound", (fwd_s + bwd_s) / both * a.batch},
-                                  {"forward_backward_bound_if_tables_stayed_cached_samples_per_s",
-                                   1 / (fwd_warm_s + bwd_warm_s)}};
+  report["hash_grid_roofline"] = {
+      {"lines_per_sample", total_lines},
+      {"levels", per_level},
+      {"forward_bound_samples_per_s", 1 / fwd_s},
+      {"backward_params_bound_samples_per_s", 1 / bwd_s},
+      {"forward_backward_bound_samples_per_s", 1 / (fwd_s + bwd_s)},
+      {"forward_backward_fraction_of_bound", (fwd_s + bwd_s) / both * a.batch},
+      {"forward_backward_bound_if_tables_stayed_cached_samples_per_s", 1 / (fwd_warm_s + bwd_warm_s)}};
   report["hash_grid"] = {{"config", enc.hyperparams()},
                          {"n_params", enc.n_params()},
                          {"batch", a.batch},
@@ -354,10 +368,11 @@ bool bench_frequency_and_sh(const Device& device, const Args& a, Json& report) {
     if (!ok || a.smoke) continue;
     d_out.data().fill(1.0f);
     const double fwd = median_time(device, a.reps, [&] { enc->forward(device, {}, in_pos, out, 0, nullptr); });
-    const double bwd = median_time(device, a.reps, [&] {
-      enc->backward(device, {}, in_pos, d_out, 0, {}, false, &d_in, nullptr);
-    });
-    report["frequency"].push_back({{"n_frequencies", n_freq}, {"n_input_dims", 3}, {"batch", a.batch},
+    const double bwd =
+        median_time(device, a.reps, [&] { enc->backward(device, {}, in_pos, d_out, 0, {}, false, &d_in, nullptr); });
+    report["frequency"].push_back({{"n_frequencies", n_freq},
+                                   {"n_input_dims", 3},
+                                   {"batch", a.batch},
                                    {"forward_samples_per_s", a.batch / fwd},
                                    {"backward_input_samples_per_s", a.batch / bwd},
                                    {"max_abs_error_vs_double", err}});
@@ -377,10 +392,10 @@ bool bench_frequency_and_sh(const Device& device, const Args& a, Json& report) {
     if (!ok || a.smoke) continue;
     d_out.data().fill(1.0f);
     const double fwd = median_time(device, a.reps, [&] { enc->forward(device, {}, in_dir, out, 0, nullptr); });
-    const double bwd = median_time(device, a.reps, [&] {
-      enc->backward(device, {}, in_dir, d_out, 0, {}, false, &d_in, nullptr);
-    });
-    report["spherical_harmonics"].push_back({{"degree", degree}, {"batch", a.batch},
+    const double bwd =
+        median_time(device, a.reps, [&] { enc->backward(device, {}, in_dir, d_out, 0, {}, false, &d_in, nullptr); });
+    report["spherical_harmonics"].push_back({{"degree", degree},
+                                             {"batch", a.batch},
                                              {"forward_samples_per_s", a.batch / fwd},
                                              {"backward_input_samples_per_s", a.batch / bwd}});
   }
@@ -397,15 +412,23 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) throw InvalidArgument(s + " needs a value");
       return argv[++i];
     };
-    if (s == "--smoke") a.smoke = true;
-    else if (s == "--device") a.device = next();
-    else if (s == "--batch") a.batch = static_cast<std::uint32_t>(std::stoul(next()));
-    else if (s == "--reps") a.reps = static_cast<std::uint32_t>(std::stoul(next()));
-    else if (s == "--out") a.out = next();
-    else if (s == "--hash-grid-only") a.hash_grid_only = true;
-    else if (s == "--log2-hashmap-size") a.log2_hashmap_size = static_cast<std::uint32_t>(std::stoul(next()));
+    if (s == "--smoke")
+      a.smoke = true;
+    else if (s == "--device")
+      a.device = next();
+    else if (s == "--batch")
+      a.batch = static_cast<std::uint32_t>(std::stoul(next()));
+    else if (s == "--reps")
+      a.reps = static_cast<std::uint32_t>(std::stoul(next()));
+    else if (s == "--out")
+      a.out = next();
+    else if (s == "--hash-grid-only")
+      a.hash_grid_only = true;
+    else if (s == "--log2-hashmap-size")
+      a.log2_hashmap_size = static_cast<std::uint32_t>(std::stoul(next()));
     else {
-      std::cerr << "usage: bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] [--hash-grid-only] [--out FILE]\n";
+      std::cerr << "usage: bench_encodings [--smoke] [--device SEL] [--batch N] [--reps N] [--log2-hashmap-size K] "
+                   "[--hash-grid-only] [--out FILE]\n";
       return 2;
     }
   }
@@ -416,8 +439,8 @@ int main(int argc, char** argv) {
   }
   try {
     const Device device = Device::select(a.device);
-    Json report = {{"bench", "encodings"}, {"device", device.info().description()}, {"smoke", a.smoke},
-                   {"checks", Json::array()}};
+    Json report = {
+        {"bench", "encodings"}, {"device", device.info().description()}, {"smoke", a.smoke}, {"checks", Json::array()}};
     bool ok = true;
     Rates rates;
     const std::uint64_t table = 8ull << (a.smoke ? 14 : a.log2_hashmap_size);  // a hashed level's, 2 features
@@ -430,8 +453,10 @@ int main(int argc, char** argv) {
     if (!a.hash_grid_only) ok &= bench_frequency_and_sh(device, a, report);
     report["ok"] = ok;
     const std::string text = report.dump(2);
-    if (a.out.empty()) std::cout << text << "\n";
-    else std::ofstream(a.out) << text << "\n";
+    if (a.out.empty())
+      std::cout << text << "\n";
+    else
+      std::ofstream(a.out) << text << "\n";
     return ok ? 0 : 1;
   } catch (const std::exception& e) {
     std::cerr << "bench_encodings: " << e.what() << "\n";

@@ -87,7 +87,8 @@ std::vector<PeakResult> measure_peak(const Device& device, const Options& o) {
   Buffer<float> buf(device, items);
   for (const auto& [name, lanes] : {std::pair<std::string, unsigned>{"peak_fma_f16", 16}, {"peak_fma_f8", 8}}) {
     Kernel k = device.kernel("peak.cl", name);
-    const std::size_t local = std::max<std::size_t>(1, std::min(k.preferred_work_group_multiple(), k.max_work_group_size()));
+    const std::size_t local =
+        std::max<std::size_t>(1, std::min(k.preferred_work_group_multiple(), k.max_work_group_size()));
     k.args(iters, c, buf);
     k.launch(items, local);
     device.finish();
@@ -126,8 +127,10 @@ struct Timing {
 class EigenMLP {
  public:
   using Mat = Eigen::MatrixXf;
-  using WMap = Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>, 0, Eigen::OuterStride<>>;
-  using GMap = Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>, 0, Eigen::OuterStride<>>;
+  using WMap =
+      Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>, 0, Eigen::OuterStride<>>;
+  using GMap =
+      Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>, 0, Eigen::OuterStride<>>;
 
   EigenMLP(const FullyFusedMLP& net, const std::vector<float>& params) : m_net(net), m_params(params) {}
 
@@ -175,7 +178,8 @@ class EigenMLP {
 #pragma omp parallel num_threads(threads)
       {
         const int t = omp_get_thread_num();
-        const Eigen::Index chunk = (dz.cols() + threads - 1) / threads, s0 = std::min<Eigen::Index>(t * chunk, dz.cols());
+        const Eigen::Index chunk = (dz.cols() + threads - 1) / threads,
+                           s0 = std::min<Eigen::Index>(t * chunk, dz.cols());
         const Eigen::Index n = std::min<Eigen::Index>(chunk, dz.cols() - s0);
         part_w[t].noalias() = dz.middleCols(s0, n) * in.middleCols(s0, n).transpose();
         part_b[t] = dz.middleCols(s0, n).rowwise().sum();
@@ -225,8 +229,8 @@ class ClblastMLP {
             const Buffer<float>& a, std::size_t a_off, std::size_t lda, const Buffer<float>& b, std::size_t b_off,
             std::size_t ldb, Buffer<float>& c, std::size_t c_off, std::size_t ldc) {
     cl_command_queue q = m_device.queue()();
-    const auto status = clblast::Gemm<float>(clblast::Layout::kRowMajor, ta, tb, m, n, k, 1.0f, a.handle()(), a_off, lda,
-                                             b.handle()(), b_off, ldb, 0.0f, c.handle()(), c_off, ldc, &q);
+    const auto status = clblast::Gemm<float>(clblast::Layout::kRowMajor, ta, tb, m, n, k, 1.0f, a.handle()(), a_off,
+                                             lda, b.handle()(), b_off, ldb, 0.0f, c.handle()(), c_off, ldc, &q);
     if (status != clblast::StatusCode::kSuccess)
       throw DeviceError("CLBlast Gemm failed with status " + std::to_string(static_cast<int>(status)));
   }
@@ -237,7 +241,8 @@ class ClblastMLP {
     for (std::uint32_t l = 0; l <= L; ++l) {
       const std::uint32_t n_in = m_net.layer_inputs(l), n_out = m_net.layer_outputs(l);
       const Buffer<float>& in = l == 0 ? x : m_h[l - 1];
-      gemm(T::kNo, T::kYes, m_batch, n_out, n_in, in, 0, n_in, params, m_net.layer_offset(l), n_in + 1, m_h[l], 0, n_out);
+      gemm(T::kNo, T::kYes, m_batch, n_out, n_in, in, 0, n_in, params, m_net.layer_offset(l), n_in + 1, m_h[l], 0,
+           n_out);
       const std::uint32_t n = m_batch * n_out;
       m_bias_act.args(n, n_out, m_h[l], params, m_net.layer_offset(l) + n_in, n_in + 1, std::uint32_t(l < L ? 1 : 0));
       m_bias_act.launch(n, 64);
@@ -327,8 +332,8 @@ BenchData bench_data(const FullyFusedMLP& net, const NetSpec& spec, std::uint32_
 }
 
 NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o) {
-  std::printf("\n%s: %u -> %u x %u -> %u, batch %u\n", spec.name.c_str(), spec.n_in, spec.n_hidden, spec.width, spec.n_out,
-              spec.batch);
+  std::printf("\n%s: %u -> %u x %u -> %u, batch %u\n", spec.name.c_str(), spec.n_in, spec.n_hidden, spec.width,
+              spec.n_out, spec.batch);
   auto base = create_network({{"n_neurons", spec.width}, {"n_hidden_layers", spec.n_hidden}}, spec.n_in, spec.n_out);
   const auto& net = dynamic_cast<const FullyFusedMLP&>(*base);
   NetResult result{spec, net.flops_per_sample(), {}};
@@ -341,7 +346,8 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
     Timing t{"fused"};
     auto t0 = Clock::now();
     net.warm_up(device);
-    BatchMatrix x(device, nv, spec.n_in), y(device, nv, spec.n_out), dy(device, nv, spec.n_out), dx(device, nv, spec.n_in);
+    BatchMatrix x(device, nv, spec.n_in), y(device, nv, spec.n_out), dy(device, nv, spec.n_out),
+        dx(device, nv, spec.n_in);
     auto ws = net.make_workspace(device);
     x.upload_row_major(xv);
     dy.upload_row_major(dyv);
@@ -441,7 +447,6 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
   return result;
 }
 
-
 // ------------------------------------------------------------------------------------------------------
 // Tuning mode (--blockings "T,R,B,V,RJ,RK,ROWS[,F[,G]];..."): the fused MLP with each register blocking (see
 // FullyFusedMLP::Blocking), verified, then timed round-robin (one forward and one training step of every
@@ -456,8 +461,8 @@ std::vector<FullyFusedMLP::Blocking> parse_blockings(const std::string& list) {
     pos = end + 1;
     if (item.empty()) continue;
     unsigned v[9] = {0, 0, 0, 0, 0, 0, 0, 0, 8};
-    const int n = std::sscanf(item.c_str(), "%u,%u,%u,%u,%u,%u,%u,%u,%u", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6],
-                              &v[7], &v[8]);
+    const int n = std::sscanf(item.c_str(), "%u,%u,%u,%u,%u,%u,%u,%u,%u", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5],
+                              &v[6], &v[7], &v[8]);
     if (n < 7) throw InvalidArgument("--blockings: '" + item + "' is not T,R,B,V,RJ,RK,ROWS[,F[,G]]");
     out.push_back({v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]});
   }
@@ -466,11 +471,12 @@ std::vector<FullyFusedMLP::Blocking> parse_blockings(const std::string& list) {
 
 void tune_net(const Device& device, const NetSpec& spec, const Options& o, double peak) {
   const auto blockings = parse_blockings(o.blockings);
-  std::printf("\n%s: %u -> %u x %u -> %u, batch %u\n", spec.name.c_str(), spec.n_in, spec.n_hidden, spec.width, spec.n_out,
-              spec.batch);
+  std::printf("\n%s: %u -> %u x %u -> %u, batch %u\n", spec.name.c_str(), spec.n_in, spec.n_hidden, spec.width,
+              spec.n_out, spec.batch);
   std::vector<std::unique_ptr<Network>> nets;
   for (const auto& b : blockings) {
-    nets.push_back(create_network({{"n_neurons", spec.width}, {"n_hidden_layers", spec.n_hidden}}, spec.n_in, spec.n_out));
+    nets.push_back(
+        create_network({{"n_neurons", spec.width}, {"n_hidden_layers", spec.n_hidden}}, spec.n_in, spec.n_out));
     dynamic_cast<FullyFusedMLP&>(*nets.back()).set_blocking(b);
   }
   const auto& net0 = dynamic_cast<const FullyFusedMLP&>(*nets[0]);
@@ -529,15 +535,23 @@ int main(int argc, char** argv) {
   Options o;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--smoke") o.smoke = true;
-    else if (a == "--json" && i + 1 < argc) o.json = argv[++i];
-    else if (a == "--device" && i + 1 < argc) o.device = argv[++i];
-    else if (a == "--variants" && i + 1 < argc) o.variants = argv[++i];
-    else if (a == "--reps" && i + 1 < argc) o.reps = std::max(1, std::atoi(argv[++i]));
-    else if (a == "--blockings" && i + 1 < argc) o.blockings = argv[++i];
+    if (a == "--smoke")
+      o.smoke = true;
+    else if (a == "--json" && i + 1 < argc)
+      o.json = argv[++i];
+    else if (a == "--device" && i + 1 < argc)
+      o.device = argv[++i];
+    else if (a == "--variants" && i + 1 < argc)
+      o.variants = argv[++i];
+    else if (a == "--reps" && i + 1 < argc)
+      o.reps = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--blockings" && i + 1 < argc)
+      o.blockings = argv[++i];
     else {
-      std::fprintf(stderr, "usage: bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants fused,eigen,clblast] "
-                           "[--blockings \"T,R,B,V,RJ,RK,ROWS[,F[,G]];...\"]\n");
+      std::fprintf(stderr,
+                   "usage: bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants "
+                   "fused,eigen,clblast] "
+                   "[--blockings \"T,R,B,V,RJ,RK,ROWS[,F[,G]];...\"]\n");
       return 2;
     }
   }
@@ -559,7 +573,8 @@ int main(int argc, char** argv) {
     std::printf("  %% of peak below: of %s (%.1f GFLOP/s), the faster calibration\n", peak_name.c_str(), peak);
 
     const std::uint32_t batch = o.smoke ? 1000 : 76800;
-    std::vector<NetSpec> specs = {{"small (3x64)", 32, 64, 3, 16, batch}, {"paper (8x256)", 64, 256, 8, 16, o.smoke ? 200 : batch}};
+    std::vector<NetSpec> specs = {{"small (3x64)", 32, 64, 3, 16, batch},
+                                  {"paper (8x256)", 64, 256, 8, 16, o.smoke ? 200 : batch}};
     if (!o.blockings.empty()) {
       for (const auto& s : specs)
         if (o.variants.find('w') == std::string::npos || o.wants(s.width >= 256 ? "w256" : "w64"))
@@ -572,21 +587,29 @@ int main(int argc, char** argv) {
     // Table.
     std::printf("\n%-14s %-8s %10s %10s %8s %10s %10s %8s %10s\n", "net", "variant", "fwd ms", "fwd GF/s", "fwd %pk",
                 "train ms", "train GF/s", "trn %pk", "first s");
-    Json j = {{"device", device.info().description()}, {"smoke", o.smoke}, {"peak_gflops", peak}, {"nets", Json::array()}};
+    Json j = {
+        {"device", device.info().description()}, {"smoke", o.smoke}, {"peak_gflops", peak}, {"nets", Json::array()}};
     for (const auto& p : peaks) j["peak"][p.variant] = p.gflops;
     for (const auto& r : results) {
-      Json jn = {{"name", r.spec.name}, {"n_input", r.spec.n_in}, {"width", r.spec.width}, {"n_hidden", r.spec.n_hidden},
-                 {"n_output", r.spec.n_out}, {"batch", r.spec.batch}, {"forward_flops_per_sample", r.flops_fwd_per_sample}};
+      Json jn = {{"name", r.spec.name},
+                 {"n_input", r.spec.n_in},
+                 {"width", r.spec.width},
+                 {"n_hidden", r.spec.n_hidden},
+                 {"n_output", r.spec.n_out},
+                 {"batch", r.spec.batch},
+                 {"forward_flops_per_sample", r.flops_fwd_per_sample}};
       double fused_f = NAN, fused_t = NAN;
       for (const auto& t : r.timings) {
         const double ff = r.flops_fwd_per_sample * r.spec.batch, tf = 3 * ff;
         const double fg = ff / t.forward_s * 1e-9, tg = tf / t.train_s * 1e-9;
         if (t.variant == "fused") fused_f = t.forward_s, fused_t = t.train_s;
-        std::printf("%-14s %-8s %10.2f %10.1f %7.1f%% %10.2f %10.1f %7.1f%% %10.2f\n", r.spec.name.c_str(), t.variant.c_str(),
-                    t.forward_s * 1e3, fg, 100 * fg / peak, t.train_s * 1e3, tg, 100 * tg / peak, t.first_call_s);
-        jn["variants"][t.variant] = {{"forward_ms", t.forward_s * 1e3}, {"forward_gflops", fg}, {"forward_pct_peak", 100 * fg / peak},
-                                     {"train_ms", t.train_s * 1e3},     {"train_gflops", tg},   {"train_pct_peak", 100 * tg / peak},
-                                     {"first_call_s", t.first_call_s}};
+        std::printf("%-14s %-8s %10.2f %10.1f %7.1f%% %10.2f %10.1f %7.1f%% %10.2f\n", r.spec.name.c_str(),
+                    t.variant.c_str(), t.forward_s * 1e3, fg, 100 * fg / peak, t.train_s * 1e3, tg, 100 * tg / peak,
+                    t.first_call_s);
+        jn["variants"][t.variant] = {
+            {"forward_ms", t.forward_s * 1e3}, {"forward_gflops", fg}, {"forward_pct_peak", 100 * fg / peak},
+            {"train_ms", t.train_s * 1e3},     {"train_gflops", tg},   {"train_pct_peak", 100 * tg / peak},
+            {"first_call_s", t.first_call_s}};
       }
       for (const auto& t : r.timings)
         if (t.variant != "fused") {

@@ -34,14 +34,21 @@ int main(int argc, char** argv) try {
       if (i + 1 >= argc) throw InvalidArgument(std::string(argv[i]) + " needs a value");
       return argv[++i];
     };
-    if (!std::strcmp(argv[i], "--smoke")) a.smoke = true;
-    else if (!std::strcmp(argv[i], "--device")) a.device = next();
-    else if (!std::strcmp(argv[i], "--resolution")) a.resolution = std::stoi(next());
-    else if (!std::strcmp(argv[i], "--spp")) a.spp = std::stoul(next());
-    else if (!std::strcmp(argv[i], "--reps")) a.reps = std::stoul(next());
-    else if (!std::strcmp(argv[i], "--out")) a.out = next();
+    if (!std::strcmp(argv[i], "--smoke"))
+      a.smoke = true;
+    else if (!std::strcmp(argv[i], "--device"))
+      a.device = next();
+    else if (!std::strcmp(argv[i], "--resolution"))
+      a.resolution = std::stoi(next());
+    else if (!std::strcmp(argv[i], "--spp"))
+      a.spp = std::stoul(next());
+    else if (!std::strcmp(argv[i], "--reps"))
+      a.reps = std::stoul(next());
+    else if (!std::strcmp(argv[i], "--out"))
+      a.out = next();
     else {
-      std::cerr << "usage: bench_pathtrace [--smoke] [--device SEL] [--resolution R] [--spp N] [--reps N] [--out FILE]\n";
+      std::cerr
+          << "usage: bench_pathtrace [--smoke] [--device SEL] [--resolution R] [--spp N] [--reps N] [--out FILE]\n";
       return 2;
     }
   }
@@ -49,16 +56,24 @@ int main(int argc, char** argv) try {
   {
     const Device dev = Device::select(a.device);
     const PathTraceBenchmark b = benchmark_pathtracer(dev, a.resolution, a.spp, a.reps, a.smoke ? 16 : 64);
-    nlohmann::json doc = {{"benchmark", "pathtrace"}, {"device", dev.info().description()}, {"scene", b.scene},
-                          {"resolution", b.resolution}, {"spp", b.spp}, {"reps", b.reps},
-                          {"warmup_seconds", b.warmup_seconds}, {"median_seconds", b.median_seconds},
-                          {"samples_per_second", b.samples_per_second}, {"furnace_check_sigma", b.furnace_sigma},
+    nlohmann::json doc = {{"benchmark", "pathtrace"},
+                          {"device", dev.info().description()},
+                          {"scene", b.scene},
+                          {"resolution", b.resolution},
+                          {"spp", b.spp},
+                          {"reps", b.reps},
+                          {"warmup_seconds", b.warmup_seconds},
+                          {"median_seconds", b.median_seconds},
+                          {"samples_per_second", b.samples_per_second},
+                          {"furnace_check_sigma", b.furnace_sigma},
                           {"smoke", a.smoke}};
     const double median = b.median_seconds, samples = double(b.resolution) * b.resolution * b.spp;
-    if (a.out.empty()) std::cout << doc.dump(2) << "\n";
-    else std::ofstream(a.out) << doc.dump(2) << "\n";
-    std::cerr << "pathtrace: " << samples / median / 1e6 << " M samples/s (median of " << a.reps << ", "
-              << a.resolution << "^2 x " << a.spp << " spp)\n";
+    if (a.out.empty())
+      std::cout << doc.dump(2) << "\n";
+    else
+      std::ofstream(a.out) << doc.dump(2) << "\n";
+    std::cerr << "pathtrace: " << samples / median / 1e6 << " M samples/s (median of " << a.reps << ", " << a.resolution
+              << "^2 x " << a.spp << " spp)\n";
     return 0;
   }
 } catch (const std::exception& e) {

@@ -65,8 +65,9 @@ std::vector<float> random_rays(std::uint32_t n, std::mt19937& rng) {
     const auto o = unit(), l = unit();
     float d[3] = {u(rng) - 4 * o[0], u(rng) - 4 * o[1], u(rng) - 4 * o[2]};
     const float len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    const float rec[render::kRayFloats] = {4 * o[0], 4 * o[1], 4 * o[2], 0, d[0] / len, d[1] / len, d[2] / len, 0,
-                                           4 * l[0], 4 * l[1], 4 * l[2], 0, 600, 600, 600, 0, 0, 0, 0, 0};
+    const float rec[render::kRayFloats] = {4 * o[0], 4 * o[1], 4 * o[2], 0,        d[0] / len, d[1] / len, d[2] / len,
+                                           0,        4 * l[0], 4 * l[1], 4 * l[2], 0,          600,        600,
+                                           600,      0,        0,        0,        0,          0};
     rays.insert(rays.end(), rec, rec + render::kRayFloats);
   }
   return rays;
@@ -79,10 +80,16 @@ struct Batch {
 
 Batch make_batch(const Device& dev, const render::VolumeRenderer& r, std::uint32_t n_rays, std::mt19937& rng) {
   const std::uint32_t n = n_rays * r.settings().n_samples, cols = r.prop_cols();
-  Batch b{Buffer<float>(dev, random_rays(n_rays, rng)), Buffer<float>(dev, n), Buffer<float>(dev, n),
-          Buffer<float>(dev, 3 * n_rays), Buffer<float>(dev, n_rays),
+  Batch b{Buffer<float>(dev, random_rays(n_rays, rng)),
+          Buffer<float>(dev, n),
+          Buffer<float>(dev, n),
+          Buffer<float>(dev, 3 * n_rays),
+          Buffer<float>(dev, n_rays),
           Buffer<float>(dev, std::vector<float>(3 * n_rays, 1.0f)),
-          BatchMatrix(dev, n, 3), BatchMatrix(dev, n, cols), BatchMatrix(dev, n, 3), BatchMatrix(dev, n, 3),
+          BatchMatrix(dev, n, 3),
+          BatchMatrix(dev, n, cols),
+          BatchMatrix(dev, n, 3),
+          BatchMatrix(dev, n, 3),
           BatchMatrix(dev, n, cols)};
   std::uniform_real_distribution<float> u(0, 1);
   std::vector<float> p(std::size_t(n) * cols);
@@ -120,7 +127,8 @@ bool verify(const Device& dev, Json& report) {
     std::vector<float> p0;
     for (std::uint32_t s = 0; s < b.props.batch(); ++s) {
       const float* row = &p[std::size_t(s) * with.prop_cols()];
-      for (std::uint32_t j = 0; j < n_env; ++j) p[std::size_t(s) * with.prop_cols() + with.env_visibility_col() + j] = 0;
+      for (std::uint32_t j = 0; j < n_env; ++j)
+        p[std::size_t(s) * with.prop_cols() + with.env_visibility_col() + j] = 0;
       p0.insert(p0.end(), row, row + without.prop_cols());
     }
     b.props.upload_row_major(p);
@@ -140,11 +148,12 @@ bool verify(const Device& dev, Json& report) {
     render::VolumeRenderer r(dev, {n, -1, 1, false, n_env});
     render::EnvironmentSamples env(dev, EnvironmentLight::uniform({2.0f, 2.0f, 2.0f}, false), n_env);
     const float rec[render::kRayFloats] = {-3, 0, 0, 0, 1, 0, 0, 0, 0, 5, 0, 0, 1, 1, 1, 0, 0, 0, 0, 0};
-    Buffer<float> rays(dev, std::vector<float>(rec, rec + render::kRayFloats)), t(dev, n), delta(dev, n),
-        color(dev, 3), trans(dev, 1);
+    Buffer<float> rays(dev, std::vector<float>(rec, rec + render::kRayFloats)), t(dev, n), delta(dev, n), color(dev, 3),
+        trans(dev, 1);
     BatchMatrix pos(dev, n, 3), props(dev, n, r.prop_cols()), rad(dev, n, 3), dirs(dev, 1, 3), basis(dev, 1, 0);
     std::vector<float> p(n * r.prop_cols(), 1.0f);
-    for (std::uint32_t s = 0; s < n; ++s) p[s * r.prop_cols() + 4] = 0.5f * (s % 3) - 0.5f, p[s * r.prop_cols() + 5] = 0;
+    for (std::uint32_t s = 0; s < n; ++s)
+      p[s * r.prop_cols() + 4] = 0.5f * (s % 3) - 0.5f, p[s * r.prop_cols() + 5] = 0;
     props.upload_row_major(p);
     r.sample(rays, 1, false, 0, t, delta, pos);
     double mean = 0;
@@ -153,7 +162,8 @@ bool verify(const Device& dev, Json& report) {
       r.forward(rays, 1, t, delta, props, dirs, basis, rad, color, trans, &env);
       for (float v : rad.download_row_major()) mean += v / (3.0 * n * draws);
     }
-    ok &= check(std::abs(mean / 2.0 - 1) < 0.03, "uniform environment: mean S_env = E", std::abs(mean / 2.0 - 1), report);
+    ok &=
+        check(std::abs(mean / 2.0 - 1) < 0.03, "uniform environment: mean S_env = E", std::abs(mean / 2.0 - 1), report);
   }
   return ok;
 }
@@ -168,11 +178,16 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) throw InvalidArgument(s + " needs a value");
       return argv[++i];
     };
-    if (s == "--smoke") a.smoke = true;
-    else if (s == "--device") a.device = next();
-    else if (s == "--rays") a.rays = static_cast<std::uint32_t>(std::stoul(next()));
-    else if (s == "--reps") a.reps = static_cast<std::uint32_t>(std::stoul(next()));
-    else if (s == "--out") a.out = next();
+    if (s == "--smoke")
+      a.smoke = true;
+    else if (s == "--device")
+      a.device = next();
+    else if (s == "--rays")
+      a.rays = static_cast<std::uint32_t>(std::stoul(next()));
+    else if (s == "--reps")
+      a.reps = static_cast<std::uint32_t>(std::stoul(next()));
+    else if (s == "--out")
+      a.out = next();
     else {
       std::cerr << "usage: bench_renderer [--smoke] [--device SEL] [--rays N] [--reps N] [--out FILE]\n";
       return 2;
@@ -185,9 +200,10 @@ int main(int argc, char** argv) {
   }
   try {
     const Device dev = Device::select(a.device);
-    Json report = {{"bench", "renderer"}, {"device", dev.info().description()}, {"smoke", a.smoke},
-                   {"rays", a.rays}, {"samples_per_ray", 64}, {"sh_lmax", 5}, {"indirect_dirs", 64},
-                   {"checks", Json::array()}};
+    Json report = {{"bench", "renderer"},   {"device", dev.info().description()},
+                   {"smoke", a.smoke},      {"rays", a.rays},
+                   {"samples_per_ray", 64}, {"sh_lmax", 5},
+                   {"indirect_dirs", 64},   {"checks", Json::array()}};
     const bool ok = verify(dev, report);
     std::mt19937 rng(7);
     const EnvironmentLight sky = EnvironmentLight::sky(128, 64, 2, 1.0f, true);
@@ -206,10 +222,12 @@ int main(int argc, char** argv) {
                   env.get());
       });
       const double bwd = median_time(dev, a.reps, [&] {
-        r.backward(b.rays, a.rays, b.t, b.delta, b.props, indirect.dirs(), indirect.basis(), b.rad, b.color,
-                   b.d_color, b.d_rad, b.d_props, env.get());
+        r.backward(b.rays, a.rays, b.t, b.delta, b.props, indirect.dirs(), indirect.basis(), b.rad, b.color, b.d_color,
+                   b.d_rad, b.d_props, env.get());
       });
-      Json entry = {{"n_env_dirs", n_env}, {"forward_ms", 1e3 * fwd}, {"backward_ms", 1e3 * bwd},
+      Json entry = {{"n_env_dirs", n_env},
+                    {"forward_ms", 1e3 * fwd},
+                    {"backward_ms", 1e3 * bwd},
                     {"forward_backward_ms", 1e3 * (fwd + bwd)}};
       if (env) {
         entry["draw_ms"] = 1e3 * median_time(dev, a.reps, [&] { env->draw(1, 1); });
@@ -225,19 +243,20 @@ int main(int argc, char** argv) {
         std::uniform_real_distribution<float> x(-1, 1);
         for (auto& v : xs) v = x(rng);
         pos.upload_row_major(xs);
-        entry["march_quarter_batch_ms"] = 1e3 * median_time(dev, a.reps, [&] {
-          render::march_visibility_directions(dev, pos, env->dirs(), density, 64, vis);
-        });
+        entry["march_quarter_batch_ms"] =
+            1e3 * median_time(dev, a.reps,
+                              [&] { render::march_visibility_directions(dev, pos, env->dirs(), density, 64, vis); });
         entry["march_samples"] = quarter;
       }
       report["timings"].push_back(entry);
-      std::cerr << "renderer, N_e = " << n_env << ": forward " << 1e3 * fwd << " ms, backward " << 1e3 * bwd
-                << " ms\n";
+      std::cerr << "renderer, N_e = " << n_env << ": forward " << 1e3 * fwd << " ms, backward " << 1e3 * bwd << " ms\n";
     }
     report["ok"] = ok;
     const std::string text = report.dump(2);
-    if (a.out.empty()) std::cout << text << "\n";
-    else std::ofstream(a.out) << text << "\n";
+    if (a.out.empty())
+      std::cout << text << "\n";
+    else
+      std::ofstream(a.out) << text << "\n";
     return ok ? 0 : 1;
   } catch (const std::exception& e) {
     std::cerr << "bench_renderer: " << e.what() << "\n";

@@ -3,9 +3,9 @@
 // property gradients back. One work-item per 16-sample tile, one float16 per column.
 
 // dst[:, dst_col + j] = scale * src[:, src_col + j] (+ dst[:, dst_col + j] when accumulate), j < count.
-__kernel void copy_columns(const uint n_tiles, const uint count, __global const float* restrict src, const uint src_cols,
-                           const uint src_col, __global float* restrict dst, const uint dst_cols, const uint dst_col,
-                           const float scale, const uint accumulate) {
+__kernel void copy_columns(const uint n_tiles, const uint count, __global const float* restrict src,
+                           const uint src_cols, const uint src_col, __global float* restrict dst, const uint dst_cols,
+                           const uint dst_col, const float scale, const uint accumulate) {
   const size_t t = get_global_id(0);
   if (t >= n_tiles) return;
   for (uint j = 0; j < count; ++j) {
@@ -19,10 +19,10 @@ __kernel void copy_columns(const uint n_tiles, const uint count, __global const 
 // floats 12..14): dst[ch * per_channel + j] = I_ch(ray(s)) * src[ch * per_channel + j]. Indirect light is linear
 // in the light's intensity, so the SH head predicts light per unit intensity (DESIGN §4.3). `scale` multiplies
 // every value (the model's intensity normalisation).
-__kernel void scale_rgb_by_ray_intensity(const uint n_tiles, const uint per_channel, const uint samples_per_ray, const float scale,
-                                         __global const float* restrict rays, __global const float* restrict src,
-                                         const uint src_cols, const uint src_col, __global float* restrict dst,
-                                         const uint dst_cols, const uint dst_col) {
+__kernel void scale_rgb_by_ray_intensity(const uint n_tiles, const uint per_channel, const uint samples_per_ray,
+                                         const float scale, __global const float* restrict rays,
+                                         __global const float* restrict src, const uint src_cols, const uint src_col,
+                                         __global float* restrict dst, const uint dst_cols, const uint dst_col) {
   const size_t t = get_global_id(0);
   if (t >= n_tiles) return;
   __global const float* ray = rays + (size_t)((t * 16) / samples_per_ray) * 20;  // samples_per_ray % 16 == 0
@@ -30,7 +30,8 @@ __kernel void scale_rgb_by_ray_intensity(const uint n_tiles, const uint per_chan
     const float intensity = scale * ray[12 + ch];
     for (uint j = 0; j < per_channel; ++j) {
       const uint c = ch * per_channel + j;
-      vstore16(intensity * vload16(0, src + (t * src_cols + src_col + c) * 16), 0, dst + (t * dst_cols + dst_col + c) * 16);
+      vstore16(intensity * vload16(0, src + (t * src_cols + src_col + c) * 16), 0,
+               dst + (t * dst_cols + dst_col + c) * 16);
     }
   }
 }

@@ -43,11 +43,16 @@
 #endif
 #ifndef N_LEVELS
 #define N_LEVELS 1
-#define LEVEL_SCALES {15.0f}
-#define LEVEL_RES {17u}
-#define LEVEL_SIZE {4920u}
-#define LEVEL_OFFSET {0u}
-#define LEVEL_HASHED {0u}
+#define LEVEL_SCALES \
+  { 15.0f }
+#define LEVEL_RES \
+  { 17u }
+#define LEVEL_SIZE \
+  { 4920u }
+#define LEVEL_OFFSET \
+  { 0u }
+#define LEVEL_HASHED \
+  { 0u }
 #endif
 #ifndef PREFETCH
 #define PREFETCH 0
@@ -88,7 +93,7 @@ __constant uint grid_prime[3] = {1u, 2654435761u, 805459861u};
 // Cell and in-cell position of 16 samples at `level`.
 inline void grid_cell(const float16* x, uint level, uint16* cell, float16* frac) {
   const float scale = level_scale[level];
-  #pragma unroll
+#pragma unroll
   for (int d = 0; d < DIMS; ++d) {
     const float16 p = fma(fmin(fmax(x[d], 0.0f), 1.0f), (float16)scale, (float16)0.5f);
     const float16 f = floor(p);
@@ -101,12 +106,12 @@ inline void grid_cell(const float16* x, uint level, uint16* cell, float16* frac)
 inline uint16 grid_index(const uint16* cell, uint level, int c) {
   uint16 index = (uint16)0u;
   if (level_hashed[level]) {
-    #pragma unroll
+#pragma unroll
     for (int d = 0; d < DIMS; ++d) index ^= (cell[d] + (uint)((c >> d) & 1)) * grid_prime[d];
     index &= (uint16)(level_size[level] - 1u);
   } else {
     uint stride = 1u;
-    #pragma unroll
+#pragma unroll
     for (int d = 0; d < DIMS; ++d) {
       index += (cell[d] + (uint)((c >> d) & 1)) * stride;
       stride *= level_res[level];
@@ -117,7 +122,7 @@ inline uint16 grid_index(const uint16* cell, uint level, int c) {
 
 inline float16 grid_weight(const float16* frac, int c) {
   float16 w = (float16)1.0f;
-  #pragma unroll
+#pragma unroll
   for (int d = 0; d < DIMS; ++d) w *= ((c >> d) & 1) ? frac[d] : 1.0f - frac[d];
   return w;
 }
@@ -127,10 +132,9 @@ inline float16 grid_weight(const float16* frac, int c) {
 // x86 and stalls: that alone made the forward pass several times slower on PoCL.)
 inline float16 gather16(__global const float* table, uint16 i, int f) {
   __global const float* p = table + f;
-  return (float16)(p[i.s0 * FEATS], p[i.s1 * FEATS], p[i.s2 * FEATS], p[i.s3 * FEATS], p[i.s4 * FEATS],
-                   p[i.s5 * FEATS], p[i.s6 * FEATS], p[i.s7 * FEATS], p[i.s8 * FEATS], p[i.s9 * FEATS],
-                   p[i.sa * FEATS], p[i.sb * FEATS], p[i.sc * FEATS], p[i.sd * FEATS], p[i.se * FEATS],
-                   p[i.sf * FEATS]);
+  return (float16)(p[i.s0 * FEATS], p[i.s1 * FEATS], p[i.s2 * FEATS], p[i.s3 * FEATS], p[i.s4 * FEATS], p[i.s5 * FEATS],
+                   p[i.s6 * FEATS], p[i.s7 * FEATS], p[i.s8 * FEATS], p[i.s9 * FEATS], p[i.sa * FEATS], p[i.sb * FEATS],
+                   p[i.sc * FEATS], p[i.sd * FEATS], p[i.se * FEATS], p[i.sf * FEATS]);
 }
 
 inline void gather16x2(__global const float* table, uint16 i, float16* f0, float16* f1) {
@@ -146,7 +150,7 @@ inline void gather16x2(__global const float* table, uint16 i, float16* f0, float
 }
 
 inline void load_inputs(__global const float* in, size_t t, uint in_cols, uint in_col, float16* x) {
-  #pragma unroll
+#pragma unroll
   for (int d = 0; d < DIMS; ++d) x[d] = enc_load(in, t, in_cols, in_col + d);
 }
 
@@ -174,9 +178,9 @@ __kernel void hashgrid_forward(const uint n_tiles, __global const float* restric
 #endif
 
   float16 acc[FEATS];
-  #pragma unroll
+#pragma unroll
   for (int f = 0; f < FEATS; ++f) acc[f] = (float16)0.0f;
-  #pragma unroll
+#pragma unroll
   for (int c = 0; c < N_CORNERS; ++c) {
     const uint16 ids = grid_index(cell, level, c);
     const float16 w = grid_weight(frac, c);
@@ -186,11 +190,11 @@ __kernel void hashgrid_forward(const uint n_tiles, __global const float* restric
     acc[0] = fma(w, v0, acc[0]);
     acc[1] = fma(w, v1, acc[1]);
 #else
-    #pragma unroll
+#pragma unroll
     for (int f = 0; f < FEATS; ++f) acc[f] = fma(w, gather16(table, ids, f), acc[f]);
 #endif
   }
-  #pragma unroll
+#pragma unroll
   for (int f = 0; f < FEATS; ++f) enc_store(out, t, out_cols, out_col + level * FEATS + f, acc[f]);
 }
 
@@ -224,7 +228,7 @@ __kernel void hashgrid_backward_params(const uint n_tiles, const uint n, __globa
     if (prefetch && t + PREFETCH_TILES < n_tiles) {
       load_inputs(in, t + PREFETCH_TILES, in_cols, in_col, x);
       grid_cell(x, level, cell, frac);
-      #pragma unroll
+#pragma unroll
       for (int c = 0; c < N_CORNERS; ++c) {
         uint ids[ENC_TILE];
         vstore16(grid_index(cell, level, c), 0, ids);
@@ -235,23 +239,23 @@ __kernel void hashgrid_backward_params(const uint n_tiles, const uint n, __globa
     load_inputs(in, t, in_cols, in_col, x);
     grid_cell(x, level, cell, frac);
     const int16 valid = (int16)((int)t * ENC_TILE) + lane < (int16)((int)n);
-    #pragma unroll
+#pragma unroll
     for (int f = 0; f < FEATS; ++f)
       g[f] = select((float16)0.0f, enc_load(d_out, t, out_cols, out_col + level * FEATS + f), valid);
-    #pragma unroll
+#pragma unroll
     for (int c = 0; c < N_CORNERS; ++c) {
       uint ids[ENC_TILE];
       float wg[FEATS][ENC_TILE];
       vstore16(grid_index(cell, level, c), 0, ids);
       const float16 w = grid_weight(frac, c);
-      #pragma unroll
+#pragma unroll
       for (int f = 0; f < FEATS; ++f) vstore16(w * g[f], 0, wg[f]);
-      #pragma unroll
+#pragma unroll
       for (int s = 0; s < ENC_TILE; ++s) {
         const uint id = ids[s];
         if (N_RANGES > 1 && (id < lo || id >= hi)) continue;
         __global float* entry = table + (size_t)id * FEATS;
-        #pragma unroll
+#pragma unroll
         for (int f = 0; f < FEATS; ++f) entry[f] += wg[f][s];
       }
     }
@@ -267,32 +271,32 @@ __kernel void hashgrid_backward_input(const uint n_tiles, __global const float* 
   if (t >= n_tiles) return;
   float16 x[DIMS], gx[DIMS];
   load_inputs(in, t, in_cols, in_col, x);
-  #pragma unroll
+#pragma unroll
   for (int d = 0; d < DIMS; ++d) gx[d] = (float16)0.0f;
   for (uint level = 0; level < N_LEVELS; ++level) {
     __global const float* table = params + param_offset + level_offset[level];
     float16 frac[DIMS], g[FEATS];
     uint16 cell[DIMS];
     grid_cell(x, level, cell, frac);
-    #pragma unroll
+#pragma unroll
     for (int f = 0; f < FEATS; ++f) g[f] = enc_load(d_out, t, out_cols, out_col + level * FEATS + f);
-    #pragma unroll
+#pragma unroll
     for (int c = 0; c < N_CORNERS; ++c) {
       const uint16 ids = grid_index(cell, level, c);
       float16 gv = (float16)0.0f;  // dL/dw_c
-      #pragma unroll
+#pragma unroll
       for (int f = 0; f < FEATS; ++f) gv = fma(g[f], gather16(table, ids, f), gv);
-      #pragma unroll
+#pragma unroll
       for (int d = 0; d < DIMS; ++d) {
         float16 dw = ((c >> d) & 1) ? (float16)1.0f : (float16)-1.0f;  // d w_c / d frac_d
-        #pragma unroll
+#pragma unroll
         for (int e = 0; e < DIMS; ++e)
           if (e != d) dw *= ((c >> e) & 1) ? frac[e] : 1.0f - frac[e];
         gx[d] = fma((float16)level_scale[level] * dw, gv, gx[d]);
       }
     }
   }
-  #pragma unroll
+#pragma unroll
   for (int d = 0; d < DIMS; ++d) {
     const int16 inside = x[d] > 0.0f && x[d] < 1.0f;
     enc_store(d_in, t, d_in_cols, in_col + d, select((float16)0.0f, gx[d], inside));

@@ -55,9 +55,12 @@ __kernel void sh_forward(const uint n_tiles, __global const float* restrict in, 
 #pragma unroll
     for (int l = m; l < DEGREE; ++l) {
       float16 q;
-      if (l == m) q = (float16)sh_qmm(m);
-      else if (l == m + 1) q = (float)(2 * m + 1) * z * q1;
-      else q = ((float)(2 * l - 1) * z * q1 - (float)(l + m - 1) * q2) * (1.0f / (float)(l - m));
+      if (l == m)
+        q = (float16)sh_qmm(m);
+      else if (l == m + 1)
+        q = (float)(2 * m + 1) * z * q1;
+      else
+        q = ((float)(2 * l - 1) * z * q1 - (float)(l + m - 1) * q2) * (1.0f / (float)(l - m));
       q2 = q1;
       q1 = q;
       const float16 nq = sh_norm[l * (l + 1) / 2 + m] * q;

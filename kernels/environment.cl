@@ -14,8 +14,8 @@
 // draw), and sum_j E / (pdf n) stays an unbiased estimate of the integral of E. u2 is uniform.
 __kernel void env_draw(const uint n, const uint seed, const uint iteration, __global const float4* restrict texels,
                        __global const float* restrict pdf_uv, __global const float* restrict marginal,
-                       __global const float* restrict conditional, const int width, const int height,
-                       const float scale, __global float* restrict dirs, __global float* restrict weights) {
+                       __global const float* restrict conditional, const int width, const int height, const float scale,
+                       __global float* restrict dirs, __global float* restrict weights) {
   const uint j = get_global_id(0);
   if (j >= n) return;
   const EnvMap e = env_map(texels, pdf_uv, marginal, conditional, width, height, scale);

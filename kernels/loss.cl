@@ -9,7 +9,8 @@
 //   LOSS 1  RelativeL2     (p - t)^2 / (sg(p)^2 + eps)             (sg: no gradient through the denominator)
 //   LOSS 2  ToneMappedL2   (m(p) - m(t))^2,  m(x) = x / (1 + |x|)  (x/(1+x) for radiance x >= 0)
 //   LOSS 3  SrgbL2         (s(p) - s(t))^2,  s = the sRGB transfer curve of linear radiance, unclamped above 1
-//                          and odd below 0: s(x) = 12.92 x for |x| <= 0.0031308, else sign(x) (1.055 |x|^(1/2.4) - 0.055)
+//                          and odd below 0: s(x) = 12.92 x for |x| <= 0.0031308, else sign(x) (1.055 |x|^(1/2.4) -
+//                          0.055)
 #ifndef LOSS
 #define LOSS 0
 #endif
@@ -33,9 +34,9 @@ inline float16 srgb_slope(float16 x) {
 }
 
 __kernel void loss_forward_backward(const uint batch, const uint cols, const float scale, const float inv_count,
-                                    __global const float16* restrict prediction, __global const float16* restrict target,
-                                    __global float16* restrict gradient, __global float* restrict partials,
-                                    const uint n_tiles) {
+                                    __global const float16* restrict prediction,
+                                    __global const float16* restrict target, __global float16* restrict gradient,
+                                    __global float* restrict partials, const uint n_tiles) {
   const uint tile = get_global_id(0);
   if (tile >= n_tiles) return;
   // Lane mask: 1 for real samples, 0 for padding rows.

@@ -13,8 +13,8 @@
 //   vis_in[:, 0..3] = (x + 1) / 2,  vis_in[:, 3..6] = w_l = (p_l - x)/|p_l - x|   (the visibility net's input)
 __kernel void light_inputs(const uint n, const uint samples_per_ray, __global const float* restrict rays,
                            __global const float* restrict positions, const float light_scale,
-                           __global float* restrict net_pos, __global float* restrict light_in,
-                           const uint light_cols, const uint light_col, __global float* restrict vis_in) {
+                           __global float* restrict net_pos, __global float* restrict light_in, const uint light_cols,
+                           const uint light_col, __global float* restrict vis_in) {
   const uint s = get_global_id(0);
   if (s >= n) return;
   __global const float* ray = rays + (size_t)(s / samples_per_ray) * RAY_FLOATS;
@@ -39,12 +39,14 @@ __kernel void light_inputs(const uint n, const uint samples_per_ray, __global co
 }
 
 // Row-major (n x cols, rows contiguous) <-> tiled n x cols.
-__kernel void rows_to_tiled(const uint n, const uint cols, __global const float* restrict src, __global float* restrict dst) {
+__kernel void rows_to_tiled(const uint n, const uint cols, __global const float* restrict src,
+                            __global float* restrict dst) {
   const uint s = get_global_id(0);
   if (s >= n) return;
   for (uint f = 0; f < cols; ++f) dst[TILED_AT(cols, s, f)] = src[(size_t)s * cols + f];
 }
-__kernel void tiled_to_rows(const uint n, const uint cols, __global const float* restrict src, __global float* restrict dst) {
+__kernel void tiled_to_rows(const uint n, const uint cols, __global const float* restrict src,
+                            __global float* restrict dst) {
   const uint s = get_global_id(0);
   if (s >= n) return;
   for (uint f = 0; f < cols; ++f) dst[(size_t)s * cols + f] = src[TILED_AT(cols, s, f)];
@@ -73,8 +75,8 @@ __kernel void column_to_flat(const uint n, const uint cols, const uint col, __gl
 
 // guard[0] = a[0] + b[0] (the step's losses); when it is not finite the optimisers skip the step (they read
 // guard[0]) and skipped[0] counts it. One work-item.
-__kernel void step_guard(__global const float* restrict a, __global const float* restrict b, __global float* restrict guard,
-                         __global uint* restrict skipped) {
+__kernel void step_guard(__global const float* restrict a, __global const float* restrict b,
+                         __global float* restrict guard, __global uint* restrict skipped) {
   if (get_global_id(0) != 0) return;
   const float total = a[0] + b[0];
   guard[0] = total;
@@ -84,7 +86,8 @@ __kernel void step_guard(__global const float* restrict a, __global const float*
 // The visibility net's queries toward the N_e environment directions, sample-major: row r = s N_e + j of `out`
 // (6 columns, rows from `row0` on) = [net_pos(s), w_j] for samples s < n. dirs: N_e x 3 tiled, unit.
 __kernel void env_visibility_inputs(const uint n, const uint n_env, __global const float* restrict net_pos,
-                                    __global const float* restrict dirs, __global float* restrict out, const uint row0) {
+                                    __global const float* restrict dirs, __global float* restrict out,
+                                    const uint row0) {
   const uint r = get_global_id(0);
   if (r >= n * n_env) return;
   const uint s = r / n_env, j = r % n_env;

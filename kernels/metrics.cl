@@ -40,7 +40,8 @@ __kernel void squared_error_rows(const uint width, const uint height, const uint
 // SSIM summed over the interior pixels of row y (those whose window lies inside the image) and all channels.
 // `weights`: the normalised 1-D Gaussian, 2 SSIM_RADIUS + 1 taps (the 2-D window is its outer product).
 __kernel void ssim_rows(const uint width, const uint height, const uint channels, __global const float* restrict a,
-                        __global const float* restrict b, __constant float* weights, __global float* restrict row_sums) {
+                        __global const float* restrict b, __constant float* weights,
+                        __global float* restrict row_sums) {
   const uint row = get_global_id(0);
   const uint n_rows = height - 2 * SSIM_RADIUS;
   if (row >= n_rows) return;
@@ -62,8 +63,8 @@ __kernel void ssim_rows(const uint width, const uint height, const uint channels
         }
       }
       const float va = saa - ma * ma, vb = sbb - mb * mb, cov = sab - ma * mb;
-      total += ((2.0f * ma * mb + SSIM_C1) * (2.0f * cov + SSIM_C2)) /
-               ((ma * ma + mb * mb + SSIM_C1) * (va + vb + SSIM_C2));
+      total +=
+          ((2.0f * ma * mb + SSIM_C1) * (2.0f * cov + SSIM_C2)) / ((ma * ma + mb * mb + SSIM_C1) * (va + vb + SSIM_C2));
     }
   }
   row_sums[row] = total;

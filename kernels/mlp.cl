@@ -39,13 +39,13 @@
 #define SKIP_MASK 0u
 #endif
 #ifndef TOP_SKIP
-#define TOP_SKIP 0   // the highest layer index with a skip (0: none)
+#define TOP_SKIP 0  // the highest layer index with a skip (0: none)
 #endif
 #ifndef HIDDEN_ACT
 #define HIDDEN_ACT 1  // 0: None, 1: ReLU
 #endif
 #ifndef OUT_ACTS
-#define OUT_ACTS 0    // per output column: 0 None, 1 ReLU, 2 Sigmoid, 3 Softplus, 4 Tanh
+#define OUT_ACTS 0  // per output column: 0 None, 1 ReLU, 2 Sigmoid, 3 Softplus, 4 Tanh
 #endif
 #ifndef BIAS
 #define BIAS 1
@@ -54,13 +54,13 @@
 #define FWD_R 4
 #endif
 #ifndef FWD_T
-#define FWD_T 1       // tiles (of 16 samples) per work-item in the forward and backward kernels
+#define FWD_T 1  // tiles (of 16 samples) per work-item in the forward and backward kernels
 #endif
 #ifndef BWD_R
-#define BWD_R FWD_R   // register block of the backward kernel
+#define BWD_R FWD_R  // register block of the backward kernel
 #endif
 #ifndef DW_VEC
-#define DW_VEC 8      // samples per accumulator of the weight-gradient kernel: 8 or 16
+#define DW_VEC 8  // samples per accumulator of the weight-gradient kernel: 8 or 16
 #endif
 #ifndef TRAIN_G
 #define TRAIN_G (4 * FWD_T)  // tiles per group of the fused training kernel, a multiple of FWD_T
@@ -129,47 +129,44 @@ inline float16 hidden_act(float16 z) {
 // acc[r][u] += sum_k w[(j0 + r) * stride + k] * SRC(k, u), for r < NR and the FWD_T tiles u (compile-time
 // constants, so the r and u loops unroll and acc[][] lives in registers). Per k: FWD_T activation loads, NR
 // weight broadcasts, NR * FWD_T FMAs: with FWD_T = 2 every broadcast feeds two FMAs.
-#define ACCUM(acc, NR, SRC, K, w, stride, j0)                                          \
-  for (uint k_ = 0; k_ < (uint)(K); ++k_) {                                            \
-    float16 x_[FWD_T];                                                                 \
-    _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) x_[u_] = SRC(k_, u_);       \
-    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                            \
-      const float16 w_ = (float16)((w)[((j0) + r_) * (stride) + k_]);                  \
-      _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_)                           \
-          acc[r_][u_] = fma(w_, x_[u_], acc[r_][u_]);                                  \
-    }                                                                                  \
+#define ACCUM(acc, NR, SRC, K, w, stride, j0)                                                           \
+  for (uint k_ = 0; k_ < (uint)(K); ++k_) {                                                             \
+    float16 x_[FWD_T];                                                                                  \
+    _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) x_[u_] = SRC(k_, u_);                         \
+    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                                              \
+      const float16 w_ = (float16)((w)[((j0) + r_) * (stride) + k_]);                                   \
+      _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) acc[r_][u_] = fma(w_, x_[u_], acc[r_][u_]); \
+    }                                                                                                   \
   }
 
 // acc[r][u] += sum_j w[j * stride + k0 + r] * SRC(j, u): the transposed product of the backward pass.
-#define ACCUM_T(acc, NR, SRC, J, w, stride, k0)                                        \
-  for (uint j_ = 0; j_ < (uint)(J); ++j_) {                                            \
-    float16 g_[FWD_T];                                                                 \
-    _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) g_[u_] = SRC(j_, u_);       \
-    __global const float* wr_ = (w) + j_ * (stride) + (k0);                            \
-    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                            \
-      const float16 w_ = (float16)(wr_[r_]);                                           \
-      _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_)                           \
-          acc[r_][u_] = fma(w_, g_[u_], acc[r_][u_]);                                  \
-    }                                                                                  \
+#define ACCUM_T(acc, NR, SRC, J, w, stride, k0)                                                         \
+  for (uint j_ = 0; j_ < (uint)(J); ++j_) {                                                             \
+    float16 g_[FWD_T];                                                                                  \
+    _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) g_[u_] = SRC(j_, u_);                         \
+    __global const float* wr_ = (w) + j_ * (stride) + (k0);                                             \
+    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                                              \
+      const float16 w_ = (float16)(wr_[r_]);                                                            \
+      _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) acc[r_][u_] = fma(w_, g_[u_], acc[r_][u_]); \
+    }                                                                                                   \
   }
 
-#define INIT_BIAS(acc, NR, w, stride, j0, K)                                           \
-  _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                              \
+#define INIT_BIAS(acc, NR, w, stride, j0, K)                                                \
+  _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                                    \
     const float16 b_ = BIAS ? (float16)((w)[((j0) + r_) * (stride) + (K)]) : (float16)0.0f; \
-    _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) acc[r_][u_] = b_;           \
+    _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) acc[r_][u_] = b_;                 \
   }
 
-#define INIT_ZERO(acc, NR)                                                             \
-  _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_)                                \
-      _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) acc[r_][u_] = (float16)0.0f;
+#define INIT_ZERO(acc, NR)                                                                                   \
+  _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) \
+      acc[r_][u_] = (float16)0.0f;
 
 // The FWD_T tiles of work-item `item`: FWD_T * item + u, clamped to the last tile. A work-item past the end
 // of an odd tile count recomputes the last tile and writes the same values again (no branches, no reads
 // past the end of the batch).
-#define ITEM_TILES(tile, item, n_tiles)                                                \
-  size_t tile[FWD_T];                                                                  \
-  _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_)                               \
-      tile[u_] = min((item) * FWD_T + u_, (size_t)(n_tiles) - 1);
+#define ITEM_TILES(tile, item, n_tiles) \
+  size_t tile[FWD_T];                   \
+  _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) tile[u_] = min((item)*FWD_T + u_, (size_t)(n_tiles)-1);
 
 // Private and scratch arrays hold feature f of tile u at [f * HS + u]: HS = FWD_T in the forward and backward
 // kernels, TRAIN_G in the fused training kernel (which runs the blocks on FWD_T of its TRAIN_G tiles at a time).
@@ -183,36 +180,37 @@ inline float16 hidden_act(float16 z) {
 // and the weight-gradient kernel streams every row contiguously over the batch.
 // ---------------------------------------------------------------------------------------------------------
 
-#define SRC_X(k, u) vload16(0, xt[u] + (k) * TILE)
-#define SRC_H(k, u) hin[(k) * HS + (u)]
+#define SRC_X(k, u) vload16(0, xt[u] + (k)*TILE)
+#define SRC_H(k, u) hin[(k)*HS + (u)]
 
 // One hidden layer block of NR outputs starting at j0.
-#define HIDDEN_BLOCK(NR, j0)                                                                   \
-  {                                                                                            \
-    float16 acc[NR][FWD_T];                                                                    \
-    INIT_BIAS(acc, NR, w, stride, j0, kin)                                                     \
-    if (l == 0) {                                                                              \
-      ACCUM(acc, NR, SRC_X, N_IN, w, stride, j0)                                               \
-    } else {                                                                                   \
-      ACCUM(acc, NR, SRC_H, WIDTH, w, stride, j0)                                              \
-      if (skip) { __global const float* ws_ = w + WIDTH; ACCUM(acc, NR, SRC_X, N_IN, ws_, stride, j0) } \
-    }                                                                                          \
-    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
-      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                     \
-        const float16 y = hidden_act(acc[r][u]);                                               \
-        hout[((j0) + r) * HS + u] = y;                                                         \
-        if (save) vstore16(y, 0, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);           \
-      }                                                                                        \
+#define HIDDEN_BLOCK(NR, j0)                                                                               \
+  {                                                                                                        \
+    float16 acc[NR][FWD_T];                                                                                \
+    INIT_BIAS(acc, NR, w, stride, j0, kin)                                                                 \
+    if (l == 0) {                                                                                          \
+      ACCUM(acc, NR, SRC_X, N_IN, w, stride, j0)                                                           \
+    } else {                                                                                               \
+      ACCUM(acc, NR, SRC_H, WIDTH, w, stride, j0)                                                          \
+      if (skip) {                                                                                          \
+        __global const float* ws_ = w + WIDTH;                                                             \
+        ACCUM(acc, NR, SRC_X, N_IN, ws_, stride, j0)                                                       \
+      }                                                                                                    \
+    }                                                                                                      \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) { \
+      const float16 y = hidden_act(acc[r][u]);                                                             \
+      hout[((j0) + r) * HS + u] = y;                                                                       \
+      if (save) vstore16(y, 0, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);                         \
+    }                                                                                                      \
   }
 
-#define OUTPUT_BLOCK(NR, j0)                                                                   \
-  {                                                                                            \
-    float16 acc[NR][FWD_T];                                                                    \
-    INIT_BIAS(acc, NR, w, stride, j0, WIDTH)                                                   \
-    ACCUM(acc, NR, SRC_H, WIDTH, w, stride, j0)                                                \
-    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
-      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u)                                       \
-        vstore16(apply_act(acc[r][u], k_out_act[(j0) + r]), 0, yt[u] + ((j0) + r) * TILE);     \
+#define OUTPUT_BLOCK(NR, j0)                                                                             \
+  {                                                                                                      \
+    float16 acc[NR][FWD_T];                                                                              \
+    INIT_BIAS(acc, NR, w, stride, j0, WIDTH)                                                             \
+    ACCUM(acc, NR, SRC_H, WIDTH, w, stride, j0)                                                          \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) \
+        vstore16(apply_act(acc[r][u], k_out_act[(j0) + r]), 0, yt[u] + ((j0) + r) * TILE);               \
   }
 
 // n_items = ceil(n_tiles / FWD_T) work-items.
@@ -271,22 +269,21 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 // zero gradients, so the weight gradients never see the padding rows whatever d_output holds there.
 // ---------------------------------------------------------------------------------------------------------
 
-#define SRC_G(j, u) gin[(j) * HS + (u)]
+#define SRC_G(j, u) gin[(j)*HS + (u)]
 
 // NR inputs k0.. of dL/dh_(l-1) = W_l^T dZ_l, masked by the activation derivative of h_(l-1), into gout.
 // H(k, u): h_(l-1) of input k in tile u; SAVE(k, u, g) stores the result elsewhere too.
-#define BACK_MASKED_BLOCK(NR, k0, H, SAVE)                                                     \
-  {                                                                                            \
-    float16 acc[NR][FWD_T];                                                                    \
-    INIT_ZERO(acc, NR)                                                                         \
-    ACCUM_T(acc, NR, SRC_G, nout, w, stride, k0)                                               \
-    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
-      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                     \
-        float16 g = acc[r][u];                                                                 \
-        if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, H((k0) + r, u) > 0.0f);       \
-        gout[((k0) + r) * HS + u] = g;                                                         \
-        SAVE((k0) + r, u, g);                                                                  \
-      }                                                                                        \
+#define BACK_MASKED_BLOCK(NR, k0, H, SAVE)                                                                 \
+  {                                                                                                        \
+    float16 acc[NR][FWD_T];                                                                                \
+    INIT_ZERO(acc, NR)                                                                                     \
+    ACCUM_T(acc, NR, SRC_G, nout, w, stride, k0)                                                           \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) { \
+      float16 g = acc[r][u];                                                                               \
+      if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, H((k0) + r, u) > 0.0f);                     \
+      gout[((k0) + r) * HS + u] = g;                                                                       \
+      SAVE((k0) + r, u, g);                                                                                \
+    }                                                                                                      \
   }
 
 // The separate backward kernel: h_(l-1) from the saved activations, dZ stored for the weight gradients.
@@ -295,27 +292,25 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 #define BACK_HIDDEN_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, H_SAVED, SAVE_DZ)
 
 // NR inputs k0.. of dL/dx from the input columns starting at column `xcol` of layer w (layer 0 or a skip).
-#define BACK_INPUT_BLOCK(NR, k0)                                                               \
-  {                                                                                            \
-    float16 acc[NR][FWD_T];                                                                    \
-    INIT_ZERO(acc, NR)                                                                         \
-    __global const float* wx_ = w + xcol;                                                      \
-    ACCUM_T(acc, NR, SRC_G, nout, wx_, stride, k0)                                             \
-    /* all loads before the stores: a duplicated last tile (see ITEM_TILES) must not add twice */ \
-    if (!first)                                                                                \
-      _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                        \
-        _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u)                                     \
-          acc[r][u] += vload16(0, dxt[u] + ((k0) + r) * TILE);                                 \
-    _Pragma("unroll") for (uint r = 0; r < (NR); ++r)                                          \
-      _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u)                                       \
-        vstore16(acc[r][u], 0, dxt[u] + ((k0) + r) * TILE);                                    \
+#define BACK_INPUT_BLOCK(NR, k0)                                                                           \
+  {                                                                                                        \
+    float16 acc[NR][FWD_T];                                                                                \
+    INIT_ZERO(acc, NR)                                                                                     \
+    __global const float* wx_ = w + xcol;                                                                  \
+    ACCUM_T(acc, NR, SRC_G, nout, wx_, stride, k0)                                                         \
+    /* all loads before the stores: a duplicated last tile (see ITEM_TILES) must not add twice */          \
+    if (!first)                                                                                            \
+      _Pragma("unroll") for (uint r = 0; r < (NR); ++r) _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) \
+          acc[r][u] += vload16(0, dxt[u] + ((k0) + r) * TILE);                                             \
+    _Pragma("unroll") for (uint r = 0; r < (NR); ++r) _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u)   \
+        vstore16(acc[r][u], 0, dxt[u] + ((k0) + r) * TILE);                                                \
   }
 
-#define BACK_INPUT(first_)                                                                     \
-  {                                                                                            \
-    const uint first = (first_);                                                               \
-    for (uint k0 = 0; k0 + BWD_R <= N_IN; k0 += BWD_R) BACK_INPUT_BLOCK(BWD_R, k0)             \
-    BACK_INPUT_TAIL                                                                            \
+#define BACK_INPUT(first_)                                                         \
+  {                                                                                \
+    const uint first = (first_);                                                   \
+    for (uint k0 = 0; k0 + BWD_R <= N_IN; k0 += BWD_R) BACK_INPUT_BLOCK(BWD_R, k0) \
+    BACK_INPUT_TAIL                                                                \
   }
 #if N_IN % BWD_R
 #define BACK_INPUT_TAIL BACK_INPUT_BLOCK(N_IN % BWD_R, N_IN - N_IN % BWD_R)
@@ -327,8 +322,8 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint batch,
                            __global const float* restrict params, const uint param_offset,
                            __global const float* restrict y, __global const float* restrict dy,
-                           __global const float* restrict act, __global float* restrict dz,
-                           __global float* restrict dx, const uint want_dx) {
+                           __global const float* restrict act, __global float* restrict dz, __global float* restrict dx,
+                           const uint want_dx) {
   const size_t item = get_global_id(0);
   if (item * FWD_T >= n_tiles) return;
   ITEM_TILES(tile, item, n_tiles)
@@ -421,10 +416,10 @@ inline float dw_sum(float8 v) {
 }
 #endif
 
-__kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len, const uint n_chunks,
-                                      const uint sub, const uint padded, __global const float* restrict dz,
-                                      const uint dz_row, const uint n_out, __global const float* restrict act,
-                                      const uint a_row, const uint a_n, const uint x_row, const uint x_n,
+__kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len, const uint n_chunks, const uint sub,
+                                      const uint padded, __global const float* restrict dz, const uint dz_row,
+                                      const uint n_out, __global const float* restrict act, const uint a_row,
+                                      const uint a_n, const uint x_row, const uint x_n,
                                       __global float* restrict partial, const uint partial_stride,
                                       const uint layer_off) {
   const uint n_in = a_n + x_n;
@@ -528,21 +523,21 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 #define N_ROWS (ACT_H0 + N_HIDDEN * WIDTH)
 
 // The fused training kernel: h_(l-1) from the scratch rows (hprev), dZ kept in gout only.
-#define H_SCRATCH(k, u) hprev[(k) * HS + (u)]
+#define H_SCRATCH(k, u) hprev[(k)*HS + (u)]
 #define SAVE_NONE(k, u, g)
 #define TRAIN_BACK_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, H_SCRATCH, SAVE_NONE)
 
 // The FWD_T tiles of sub-group s of the group starting at tile tb: tile indices (clamped to the chunk), x
 // and dL/dx pointers (the sink for tiles past the chunk's end).
-#define SUB_TILES(s)                                                                           \
-  size_t tile[FWD_T];                                                                          \
-  __global const float* xt[FWD_T];                                                             \
-  __global float* dxt[FWD_T];                                                                  \
-  _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                                         \
-    const size_t t_ = tb + (s) * FWD_T + u;                                                    \
-    tile[u] = min(t_, t_end - 1);                                                              \
-    xt[u] = x + tile[u] * (size_t)(N_IN * TILE);                                               \
-    dxt[u] = t_ < t_end ? dx + tile[u] * (size_t)(N_IN * TILE) : sink;                         \
+#define SUB_TILES(s)                                                   \
+  size_t tile[FWD_T];                                                  \
+  __global const float* xt[FWD_T];                                     \
+  __global float* dxt[FWD_T];                                          \
+  _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) {                 \
+    const size_t t_ = tb + (s)*FWD_T + u;                              \
+    tile[u] = min(t_, t_end - 1);                                      \
+    xt[u] = x + tile[u] * (size_t)(N_IN * TILE);                       \
+    dxt[u] = t_ < t_end ? dx + tile[u] * (size_t)(N_IN * TILE) : sink; \
   }
 
 __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint chunk_tiles, const uint n_params,

@@ -20,8 +20,8 @@ __kernel void relu_mask(const uint n, __global float* restrict g, __global const
 }
 
 // db[j * db_stride] = sum_s g[s][j], one work-item per column, rows in order.
-__kernel void column_sums(const uint rows, const uint cols, __global const float* restrict g, __global float* restrict db,
-                          const uint db_offset, const uint db_stride) {
+__kernel void column_sums(const uint rows, const uint cols, __global const float* restrict g,
+                          __global float* restrict db, const uint db_offset, const uint db_stride) {
   const size_t j = get_global_id(0);
   if (j >= cols) return;
   float s = 0.0f;

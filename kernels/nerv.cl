@@ -89,9 +89,8 @@ __kernel void nerv_bounce_queries(const uint n_rays, const uint K, __global cons
 // x'_q, rows n_rays K + r: x_t of ray r) and the visibility MLP's inputs from x'_q toward the ray's light.
 __kernel void nerv_bounce_points(const uint n_rays, const uint K, __global const float* restrict rays,
                                  __global const float4* restrict x_t, __global const float* restrict dirs,
-                                 __global const float* restrict vd, const uint vd_cols,
-                                 __global float4* restrict x_b, __global float* restrict net_pos,
-                                 __global float* restrict light_in) {
+                                 __global const float* restrict vd, const uint vd_cols, __global float4* restrict x_b,
+                                 __global float* restrict net_pos, __global float* restrict light_in) {
   const uint q = get_global_id(0);
   const uint nq = n_rays * K;
   if (q >= nq + n_rays) return;
@@ -153,9 +152,9 @@ __kernel void nerv_indirect(const uint n_rays, const uint K, __global const floa
     const uint q = r * K + k;
     const float3 w = tiled3(dirs, 3, k, 0);
     float3 dS;
-    const float3 S = bounce_light(ray, x_b[q], w, g_scale * bprops[TILED_AT(bcols, q, 4)],
-                                  light_vis[TILED_AT(lv_cols, q, 0)], q, n_env, env_dirs, env_weights, env_vd, lv_cols,
-                                  &dS);
+    const float3 S =
+        bounce_light(ray, x_b[q], w, g_scale * bprops[TILED_AT(bcols, q, 4)], light_vis[TILED_AT(lv_cols, q, 0)], q,
+                     n_env, env_dirs, env_weights, env_vd, lv_cols, &dS);
     E = fma(hg_phase(dot(-d, w), g_t) * tiled3(bprops, bcols, q, 1), S, E);
   }
   E *= 4.0f * M_PI_F / K;
@@ -173,11 +172,11 @@ __kernel void nerv_indirect_backward(const uint n_rays, const uint K, __global c
                                      __global const float* restrict dirs, __global const float4* restrict x_b,
                                      __global const float* restrict bprops, const uint bcols, const float g_scale,
                                      __global const float* restrict light_vis, const uint lv_cols, const uint n_env,
-                                     __global const float* restrict env_dirs, __global const float* restrict env_weights,
-                                     __global const float* restrict env_vd,
-                                     __global const float4* restrict albedo_sum, __global const float4* restrict indirect,
-                                     __global const float* restrict d_color, __global float* restrict d_bprops,
-                                     __global float4* restrict dw) {
+                                     __global const float* restrict env_dirs,
+                                     __global const float* restrict env_weights, __global const float* restrict env_vd,
+                                     __global const float4* restrict albedo_sum,
+                                     __global const float4* restrict indirect, __global const float* restrict d_color,
+                                     __global float* restrict d_bprops, __global float4* restrict dw) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
   __global const float* ray = rays + (size_t)r * RAY_FLOATS;

@@ -6,28 +6,35 @@
 // the image does not depend on how it was cut into tiles and passes.
 #include "pathtrace.clh"
 
-__kernel void pathtrace_render(
-    const uint n, const uint pixel_begin, const uint sample_begin, const uint sample_count, const uint seed,
-    const uint width, const float4 cam_row0, const float4 cam_row1, const float4 cam_row2, const float4 cam_params,
-    const uint max_bounces, const uint rr_depth,
-    __global const float* density, const int4 density_dims, const float density_scale,
-    __global const float* majorant, const int4 majorant_dims,
-    __global const float4* albedo, const int4 albedo_dims, const float4 albedo_g,
-    __global const float* sdf, const int4 sdf_dims, const float4 material,
-    __global const float4* lights, const uint n_lights,
-    __global const float4* env, __global const float* env_pdf_uv, __global const float* env_marginal,
-    __global const float* env_conditional, const int4 env_dims, const float env_scale,
-    __global float4* accum, __global float4* accum_sq) {
+__kernel void pathtrace_render(const uint n, const uint pixel_begin, const uint sample_begin, const uint sample_count,
+                               const uint seed, const uint width, const float4 cam_row0, const float4 cam_row1,
+                               const float4 cam_row2, const float4 cam_params, const uint max_bounces,
+                               const uint rr_depth, __global const float* density, const int4 density_dims,
+                               const float density_scale, __global const float* majorant, const int4 majorant_dims,
+                               __global const float4* albedo, const int4 albedo_dims, const float4 albedo_g,
+                               __global const float* sdf, const int4 sdf_dims, const float4 material,
+                               __global const float4* lights, const uint n_lights, __global const float4* env,
+                               __global const float* env_pdf_uv, __global const float* env_marginal,
+                               __global const float* env_conditional, const int4 env_dims, const float env_scale,
+                               __global float4* accum, __global float4* accum_sq) {
   const size_t gid = get_global_id(0);
   if (gid >= n) return;
   const uint pixel = pixel_begin + (uint)gid;
 
   PtScene s;
-  s.density = density; s.density_dims = density_dims; s.density_scale = density_scale;
-  s.majorant = majorant; s.majorant_dims = majorant_dims;
-  s.albedo = albedo_dims.w ? albedo : 0; s.albedo_dims = albedo_dims;
-  s.albedo_const = albedo_g.xyz; s.g = albedo_g.w;
-  s.sdf = sdf; s.sdf_dims = sdf_dims; s.base_color = material.xyz; s.roughness = material.w;
+  s.density = density;
+  s.density_dims = density_dims;
+  s.density_scale = density_scale;
+  s.majorant = majorant;
+  s.majorant_dims = majorant_dims;
+  s.albedo = albedo_dims.w ? albedo : 0;
+  s.albedo_dims = albedo_dims;
+  s.albedo_const = albedo_g.xyz;
+  s.g = albedo_g.w;
+  s.sdf = sdf;
+  s.sdf_dims = sdf_dims;
+  s.base_color = material.xyz;
+  s.roughness = material.w;
   s.env = env_map(env, env_pdf_uv, env_marginal, env_conditional, env_dims.x, env_dims.y, env_scale);
   s.env_dims = env_dims;
 

@@ -74,19 +74,28 @@ __kernel void probe_brdf_albedo(const uint n, __global const float4* cases, cons
   out[i] = diffuse + spec;
 }
 
-#define PROBE_SCENE_ARGS                                                                                   \
-  __global const float *density, const int4 density_dims, const float density_scale,                      \
-      __global const float *majorant, const int4 majorant_dims, __global const float4 *env,                 \
-      __global const float *env_pdf_uv, __global const float *env_marginal, __global const float *env_conditional, \
-      const int4 env_dims
+#define PROBE_SCENE_ARGS                                                                                             \
+  __global const float *density, const int4 density_dims, const float density_scale, __global const float *majorant, \
+      const int4 majorant_dims, __global const float4 *env, __global const float *env_pdf_uv,                        \
+      __global const float *env_marginal, __global const float *env_conditional, const int4 env_dims
 
-#define PROBE_SCENE_INIT                                                                                   \
-  PtScene s;                                                                                               \
-  s.density = density; s.density_dims = density_dims; s.density_scale = density_scale;                   \
-  s.majorant = majorant; s.majorant_dims = majorant_dims; s.albedo = 0; s.albedo_dims = (int4)(0);        \
-  s.albedo_const = (float3)(1.0f); s.g = 0.0f; s.sdf = 0; s.sdf_dims = (int4)(0);                         \
-  s.base_color = (float3)(0.0f); s.roughness = 1.0f;                                                      \
-  s.env = env_map(env, env_pdf_uv, env_marginal, env_conditional, env_dims.x, env_dims.y, 1.0f); s.env_dims = env_dims;
+#define PROBE_SCENE_INIT                                                                         \
+  PtScene s;                                                                                     \
+  s.density = density;                                                                           \
+  s.density_dims = density_dims;                                                                 \
+  s.density_scale = density_scale;                                                               \
+  s.majorant = majorant;                                                                         \
+  s.majorant_dims = majorant_dims;                                                               \
+  s.albedo = 0;                                                                                  \
+  s.albedo_dims = (int4)(0);                                                                     \
+  s.albedo_const = (float3)(1.0f);                                                               \
+  s.g = 0.0f;                                                                                    \
+  s.sdf = 0;                                                                                     \
+  s.sdf_dims = (int4)(0);                                                                        \
+  s.base_color = (float3)(0.0f);                                                                 \
+  s.roughness = 1.0f;                                                                            \
+  s.env = env_map(env, env_pdf_uv, env_marginal, env_conditional, env_dims.x, env_dims.y, 1.0f); \
+  s.env_dims = env_dims;
 
 // Environment sampling: out[i] = (direction, pdf reported by the sampler); pdf_at[i] = pdf evaluated at it.
 __kernel void probe_env_sample(const uint n, const uint seed, PROBE_SCENE_ARGS, __global float4* out,

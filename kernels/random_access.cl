@@ -65,7 +65,7 @@ __kernel void random_rmw(const uint iters, const uint mask, const uint n_tables,
     if (prefetch && k + 1u < n_tables) ra_prefetch(t + mask + 1u, mask, per_table, r - k * per_table);
     uint idx[16];
     vstore16(ra_index(gid, iters, r, mask), 0, idx);
-    #pragma unroll
+#pragma unroll
     for (int l = 0; l < 16; ++l) t[idx[l]] += (float2)1.0f;
   }
 }

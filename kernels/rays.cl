@@ -39,7 +39,8 @@ __kernel void training_rays(const uint n_rays, const uint seed, const uint itera
   const uint image = h % n_images;
   const uint pixel = relit_hash(h ^ 0x9e3779b9u) % (width * height);
   const uint px = pixel % width, py = pixel / width;
-  write_ray(rays + (size_t)j * RAY_FLOATS, cameras + (size_t)image * 16, px + 0.5f, py + 0.5f, lights + (size_t)image * 8);
+  write_ray(rays + (size_t)j * RAY_FLOATS, cameras + (size_t)image * 16, px + 0.5f, py + 0.5f,
+            lights + (size_t)image * 8);
   const size_t src = ((size_t)image * width * height + pixel) * 3;
   targets[3 * j] = images[src];
   targets[3 * j + 1] = images[src + 1];

@@ -127,8 +127,10 @@ __kernel void sample_rays(const uint n_rays, const uint jitter, const uint seed,
   const float3 o = (float3)(ray[0], ray[1], ray[2]);
   const float3 d = (float3)(ray[4], ray[5], ray[6]);
   float tn, tf;
-  if (box_intersect(o, d, &tn, &tf) && tf > fmax(tn, 0.0f)) tn = fmax(tn, 0.0f);
-  else tn = tf = 0.0f;
+  if (box_intersect(o, d, &tn, &tf) && tf > fmax(tn, 0.0f))
+    tn = fmax(tn, 0.0f);
+  else
+    tn = tf = 0.0f;
   ray[3] = tn;
   ray[7] = tf;
   const float step = (tf - tn) / N_SAMPLES;
@@ -159,10 +161,10 @@ __kernel void sample_rays(const uint n_rays, const uint jitter, const uint seed,
 
 // Everything a tile's samples share or need, for forward and backward.
 typedef struct {
-  float3 wo;          // toward the camera
+  float3 wo;  // toward the camera
   float16 g, vis;
-  float16 mu_l;       // w_o . w_l per sample
-  float16 direct;     // V I / r^2 without the colour: multiplies intensity.rgb
+  float16 mu_l;    // w_o . w_l per sample
+  float16 direct;  // V I / r^2 without the colour: multiplies intensity.rgb
   float3 intensity;
 } TileLight;
 
@@ -260,8 +262,8 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   const float16 dir_common = L.direct;
   const float16 p_l = hg_phase16(L.g, L.mu_l) * dir_common;
   float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
-  float16 d_g = hg_dphase16_dg(L.g, L.mu_l) * dir_common *
-                (er * L.intensity.x + eg * L.intensity.y + eb * L.intensity.z);
+  float16 d_g =
+      hg_dphase16_dg(L.g, L.mu_l) * dir_common * (er * L.intensity.x + eg * L.intensity.y + eb * L.intensity.z);
 #if N_ENV > 0
   for (uint j = 0; j < N_ENV; ++j) {
     const float16 mu = (float16)(dir_cosine(L.wo, env_dirs, j));
@@ -448,14 +450,11 @@ inline float3 brdf_term_backward(const SurfacePoint* p, float3 w, float3 L, floa
 
 // Given dL/d(radiance): dL/d(albedo), dL/dr, dL/d(SH coefficients) and dL/d(n_raw) into d_props; sigma's
 // column is written by the compositing backward; every visibility column gets zero (gradient isolation).
-__kernel void render_radiance_brdf_backward(const uint n, __global const float* restrict rays,
-                                            __global const float* restrict t, __global const float* restrict props,
-                                            __global const float* restrict dirs,
-                                            __global const float* restrict sh_basis,
-                                            __global const float* restrict env_dirs,
-                                            __global const float* restrict env_weights,
-                                            __global const float* restrict d_radiance,
-                                            __global float* restrict d_props) {
+__kernel void render_radiance_brdf_backward(
+    const uint n, __global const float* restrict rays, __global const float* restrict t,
+    __global const float* restrict props, __global const float* restrict dirs, __global const float* restrict sh_basis,
+    __global const float* restrict env_dirs, __global const float* restrict env_weights,
+    __global const float* restrict d_radiance, __global float* restrict d_props) {
   const uint s = get_global_id(0);
   if (s >= n) return;
   const SurfacePoint p = surface_point(rays + (size_t)(s / N_SAMPLES) * RAY_FLOATS, t, props, s);
@@ -527,7 +526,8 @@ __kernel void composite(const uint n_rays, __global const float* restrict rays, 
     const size_t s = (size_t)r * N_SAMPLES + i;
     const float alpha = 1.0f - exp(-tiled_at(props, PROP_COLS, s, 0) * delta[s]);
     const float w = T * alpha;
-    c = fma((float3)(w), (float3)(tiled_at(radiance, 3, s, 0), tiled_at(radiance, 3, s, 1), tiled_at(radiance, 3, s, 2)), c);
+    c = fma((float3)(w),
+            (float3)(tiled_at(radiance, 3, s, 0), tiled_at(radiance, 3, s, 1), tiled_at(radiance, 3, s, 2)), c);
     T *= 1.0f - alpha;
   }
   __global const float* ray = rays + (size_t)r * RAY_FLOATS;

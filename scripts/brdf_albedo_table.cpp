@@ -36,8 +36,8 @@ int main() {
     for (int j = 0; j + 1 < n; ++j) {
       const double x0 = double(j) / (n - 1), x1 = double(j + 1) / (n - 1), dx = x1 - x0;
       const double e0 = table[i * n + j], e1 = table[i * n + j + 1];
-      const double m3 = (std::pow(x1, 4) - std::pow(x0, 4)) / 4;                          // int x^3
-      const double m4 = (std::pow(x1, 5) - std::pow(x0, 5)) / 5 - x0 * m3;                // int (x - x0) x^3
+      const double m3 = (std::pow(x1, 4) - std::pow(x0, 4)) / 4;            // int x^3
+      const double m4 = (std::pow(x1, 5) - std::pow(x0, 5)) / 5 - x0 * m3;  // int (x - x0) x^3
       sum += e0 * m3 + (e1 - e0) / dx * m4;
     }
     average[i] = float(4 * sum);
@@ -50,8 +50,7 @@ int main() {
       "#ifndef RELIT_BRDF_ALBEDO_CLH\n#define RELIT_BRDF_ALBEDO_CLH\n\n#define RELIT_BRDF_ALBEDO_N %d\n\n"
       "// clang-format off\n#define RELIT_BRDF_ALBEDO_TABLE",
       n - 1, n - 1, n);
-  for (int i = 0; i < n * n; ++i)
-    print_float(table[i], i % 6 == 0 ? " \\\n  " : " ", i + 1 < n * n ? "," : "");
+  for (int i = 0; i < n * n; ++i) print_float(table[i], i % 6 == 0 ? " \\\n  " : " ", i + 1 < n * n ? "," : "");
   std::printf("\n\n#define RELIT_BRDF_ALBEDO_AVERAGE");
   for (int i = 0; i < n; ++i) print_float(average[i], i % 6 == 0 ? " \\\n  " : " ", i + 1 < n ? "," : "");
   std::printf("\n// clang-format on\n\n#endif\n");

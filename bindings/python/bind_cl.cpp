@@ -35,7 +35,8 @@ PyObject* tuple_of(std::initializer_list<PyObject*> classes) {
   return t;
 }
 
-void raise_with_attributes(PyObject* cls, const std::string& message, std::initializer_list<std::pair<const char*, py::object>> attrs) {
+void raise_with_attributes(PyObject* cls, const std::string& message,
+                           std::initializer_list<std::pair<const char*, py::object>> attrs) {
   py::object instance = py::reinterpret_steal<py::object>(PyObject_CallFunction(cls, "s", message.c_str()));
   if (!instance) throw py::error_already_set();
   for (const auto& [name, value] : attrs) instance.attr(name) = value;
@@ -53,9 +54,12 @@ void translate(std::exception_ptr p) {
   try {
     if (p) std::rethrow_exception(p);
   } catch (const relit::BuildError& e) {
-    raise_with_attributes(c.build, e.what(), {{"log", py::str(e.log())}, {"options", py::str(e.options())},
-                                              {"device", py::str(e.device())}, {"source_path", py::str(e.source_path())},
-                                              {"program", py::str(e.program())}});
+    raise_with_attributes(c.build, e.what(),
+                          {{"log", py::str(e.log())},
+                           {"options", py::str(e.options())},
+                           {"device", py::str(e.device())},
+                           {"source_path", py::str(e.source_path())},
+                           {"program", py::str(e.program())}});
   } catch (const relit::ClError& e) {
     raise_with_attributes(c.cl_error, e.what(), {{"code", py::int_(e.code())}, {"call", py::str(e.call())}});
   } catch (const relit::DeviceError& e) {
@@ -73,11 +77,14 @@ void translate(std::exception_ptr p) {
 
 void register_exceptions(py::module_& m) {
   PyObject* error = new_exception(m, "Error", PyExc_Exception, "Base class of every error relit raises.");
-  PyObject* invalid = new_exception(m, "InvalidArgument", tuple_of({error, PyExc_ValueError}),
-                                    "A bad parameter or value.");
-  PyObject* config = new_exception(m, "ConfigError", tuple_of({invalid}), "A bad config; .pointer is the JSON pointer.");
-  PyObject* io = new_exception(m, "IOError", tuple_of({error, PyExc_OSError}), "A missing, unreadable or corrupt file.");
-  PyObject* device = new_exception(m, "DeviceError", tuple_of({error, PyExc_RuntimeError}), "An OpenCL device problem.");
+  PyObject* invalid =
+      new_exception(m, "InvalidArgument", tuple_of({error, PyExc_ValueError}), "A bad parameter or value.");
+  PyObject* config =
+      new_exception(m, "ConfigError", tuple_of({invalid}), "A bad config; .pointer is the JSON pointer.");
+  PyObject* io =
+      new_exception(m, "IOError", tuple_of({error, PyExc_OSError}), "A missing, unreadable or corrupt file.");
+  PyObject* device =
+      new_exception(m, "DeviceError", tuple_of({error, PyExc_RuntimeError}), "An OpenCL device problem.");
   PyObject* cl_error = new_exception(m, "ClError", tuple_of({device}), "A failed OpenCL call; .code is its status.");
   PyObject* build = new_exception(m, "BuildError", tuple_of({device}),
                                   "A kernel failed to compile; .log, .options, .device and .source_path say why.");
@@ -147,8 +154,9 @@ void bind_cl(py::module_& m) {
       .def("program", &relit::Device::program, py::arg("file"), py::arg("defines") = relit::Defines{},
            py::arg("options") = "", py::call_guard<py::gil_scoped_release>(),
            "Builds kernels/<file> with -D defines (cached per device, source and options).")
-      .def("check_programs", [](const relit::Device& d) { return relit::check_programs(d); },
-           py::call_guard<py::gil_scoped_release>(), "Builds every relit kernel program on this device.")
+      .def(
+          "check_programs", [](const relit::Device& d) { return relit::check_programs(d); },
+          py::call_guard<py::gil_scoped_release>(), "Builds every relit kernel program on this device.")
       .def_property_readonly("cached_programs", &relit::Device::cached_programs)
       .def("__eq__", [](const relit::Device& a, const relit::Device& b) { return a == b; })
       .def("__hash__", [](const relit::Device& d) { return std::hash<std::string>()(d.info().name) ^ d.info().index; })
@@ -156,14 +164,18 @@ void bind_cl(py::module_& m) {
 
   m.def("devices", &relit::list_devices, py::call_guard<py::gil_scoped_release>(),
         "Every device of every OpenCL platform (relit.DeviceInfo), in the order RELIT_DEVICE indices use.");
-  m.def("set_log_level", [](const std::string& level) { relit::set_log_level(relit::parse_log_level(level)); },
-        py::arg("level"), "'debug', 'info', 'warning', 'error' or 'off'");
-  m.def("cli_main", [](const std::vector<std::string>& argv) {
+  m.def(
+      "set_log_level", [](const std::string& level) { relit::set_log_level(relit::parse_log_level(level)); },
+      py::arg("level"), "'debug', 'info', 'warning', 'error' or 'off'");
+  m.def(
+      "cli_main",
+      [](const std::vector<std::string>& argv) {
         py::gil_scoped_release release;
         const int code = relit::cli::run(argv);
         std::cout.flush();
         return code;
-      }, py::arg("argv"), "Runs the relit command line (argv[0] is the program name); returns the exit code.");
+      },
+      py::arg("argv"), "Runs the relit command line (argv[0] is the program name); returns the exit code.");
 }
 
 }  // namespace relit::python

@@ -21,15 +21,17 @@ namespace relit::python {
 
 namespace {
 
-
 // A run config from a preset name, a .json path or a dict; `method` (when not None) picks that method's preset
 // for "fast"/"paper" and must agree with the config's "method".
 Json config_from(const py::object& config, const py::object& method_arg) {
   const std::string m = method_arg.is_none() ? std::string() : method_arg.cast<std::string>();
   Json c;
-  if (py::isinstance<py::str>(config)) c = method::load_run_config(method::config_for_method(config.cast<std::string>(), m));
-  else if (py::isinstance<py::dict>(config)) c = json_from_python(config);
-  else throw InvalidArgument("config must be a preset name, a .json path or a dict");
+  if (py::isinstance<py::str>(config))
+    c = method::load_run_config(method::config_for_method(config.cast<std::string>(), m));
+  else if (py::isinstance<py::dict>(config))
+    c = json_from_python(config);
+  else
+    throw InvalidArgument("config must be a preset name, a .json path or a dict");
   method::set_method(c, m, py::isinstance<py::str>(config) ? config.cast<std::string>() : "the config dict");
   return c;
 }
@@ -131,16 +133,20 @@ void bind_method(py::module_& m) {
                             "point light.")
       .def_static(
           "load",
-          [](const std::string& path, const py::object& device) { return method::load_model(device_arg(device), path); },
+          [](const std::string& path, const py::object& device) {
+            return method::load_model(device_arg(device), path);
+          },
           py::arg("path"), py::arg("device") = py::none(), "Loads the model of a checkpoint (checkpoint.relit).")
-      .def("render", &render, py::arg("camera"), py::arg("light"), py::arg("visibility") = "", py::arg("seed") = 0,
-           py::arg("environment") = py::none(), py::arg("spp") = 1,
-           "Renders camera's image under the point light: float32 (height, width, 3), linear RGB. visibility:\n"
-           "\"network\" or \"march\" (default: the model's setting). environment: a relit.EnvironmentLight\n"
-           "lighting the scene as well (models trained on 'env+point' data), e.g. EnvironmentLight.from_dataset(path).\n"
-           "spp: rays per pixel, averaged over an n x n grid in each pixel (1, 4, 9, ...).")
-      .def_property_readonly("has_environment", [](const method::Model& o) { return o.has_environment(); },
-                             "whether the model was trained with an environment light ('env+point' data)")
+      .def(
+          "render", &render, py::arg("camera"), py::arg("light"), py::arg("visibility") = "", py::arg("seed") = 0,
+          py::arg("environment") = py::none(), py::arg("spp") = 1,
+          "Renders camera's image under the point light: float32 (height, width, 3), linear RGB. visibility:\n"
+          "\"network\" or \"march\" (default: the model's setting). environment: a relit.EnvironmentLight\n"
+          "lighting the scene as well (models trained on 'env+point' data), e.g. EnvironmentLight.from_dataset(path).\n"
+          "spp: rays per pixel, averaged over an n x n grid in each pixel (1, 4, 9, ...).")
+      .def_property_readonly(
+          "has_environment", [](const method::Model& o) { return o.has_environment(); },
+          "whether the model was trained with an environment light ('env+point' data)")
       .def_property_readonly("method", &method::Model::method, "the method: \"ours\", \"bi\" or \"nerv\"")
       .def_property_readonly("n_params", &method::Model::n_params)
       .def_property_readonly("n_visibility_params", &method::Model::n_vis_params)
@@ -180,7 +186,8 @@ void bind_method(py::module_& m) {
       .def_property_readonly("steps", &method::Trainer::steps)
       .def_property_readonly("config", [](const method::Trainer& t) { return json_to_python(t.config()); })
       .def_property_readonly(
-          "model", [](method::Trainer& t) -> method::Model& { return t.model(); }, py::return_value_policy::reference_internal);
+          "model", [](method::Trainer& t) -> method::Model& { return t.model(); },
+          py::return_value_policy::reference_internal);
 }
 
 }  // namespace relit::python

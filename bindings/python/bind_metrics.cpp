@@ -33,19 +33,24 @@ metrics::ImageComparison compare(const Image& prediction, const Image& reference
 
 void bind_metrics(py::module_& root) {
   py::module_ m = root.def_submodule("metrics", "PSNR and SSIM on clamped, sRGB-encoded images (computed in OpenCL).");
-  m.def("compare", [](const Image& p, const Image& r, const py::object& device) {
+  m.def(
+      "compare",
+      [](const Image& p, const Image& r, const py::object& device) {
         const auto c = compare(p, r, device);
         py::dict d;
         d["mse"] = c.mse;
         d["psnr"] = c.psnr;
         d["ssim"] = c.ssim;
         return d;
-      }, py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none(),
+      },
+      py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none(),
       "Linear float images (H, W[, C]) → {'mse', 'psnr', 'ssim'} of their clamped sRGB encodings.");
-  m.def("psnr", [](const Image& p, const Image& r, const py::object& device) { return compare(p, r, device).psnr; },
-        py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none());
-  m.def("ssim", [](const Image& p, const Image& r, const py::object& device) { return compare(p, r, device).ssim; },
-        py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none());
+  m.def(
+      "psnr", [](const Image& p, const Image& r, const py::object& device) { return compare(p, r, device).psnr; },
+      py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none());
+  m.def(
+      "ssim", [](const Image& p, const Image& r, const py::object& device) { return compare(p, r, device).ssim; },
+      py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none());
 }
 
 }  // namespace relit::python

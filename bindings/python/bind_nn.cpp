@@ -33,12 +33,12 @@ Json to_json(const py::object& config) {
   return json_from_python(config);
 }
 
-
 // A 2-D array with `cols` columns → BatchMatrix.
 std::uint32_t rows_of(const FloatArray& a, std::uint32_t cols, const char* what) {
   if (a.ndim() != 2 || static_cast<std::uint32_t>(a.shape(1)) != cols)
-    throw InvalidArgument(std::string(what) + " must have shape (n, " + std::to_string(cols) + "), got " +
-                          std::string(py::str(py::tuple(py::cast(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()))))));
+    throw InvalidArgument(
+        std::string(what) + " must have shape (n, " + std::to_string(cols) + "), got " +
+        std::string(py::str(py::tuple(py::cast(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()))))));
   return static_cast<std::uint32_t>(a.shape(0));
 }
 
@@ -103,7 +103,8 @@ struct Owned {
   FloatArray get_params() const { return to_array(params.read()); }
   void set_params(const FloatArray& p) {
     if (static_cast<std::size_t>(p.size()) != params.size())
-      throw InvalidArgument("expected " + std::to_string(params.size()) + " parameters, got " + std::to_string(p.size()));
+      throw InvalidArgument("expected " + std::to_string(params.size()) + " parameters, got " +
+                            std::to_string(p.size()));
     params.write(std::vector<float>(p.data(), p.data() + p.size()));
   }
 };
@@ -126,7 +127,8 @@ struct PyEncoding : Owned<nn::Encoding> {
 };
 
 struct PyNetwork : Owned<nn::Network> {
-  PyNetwork(const py::object& config, std::uint32_t n_in, std::uint32_t n_out, const py::object& dev, std::uint64_t seed) {
+  PyNetwork(const py::object& config, std::uint32_t n_in, std::uint32_t n_out, const py::object& dev,
+            std::uint64_t seed) {
     device = device_arg(dev);
     component = nn::create_network(to_json(config), n_in, n_out);
     workspace = component->make_workspace(device);
@@ -145,7 +147,8 @@ struct PyNetwork : Owned<nn::Network> {
 struct PyLoss {
   Device device;
   std::unique_ptr<nn::Loss> loss;
-  PyLoss(const py::object& config, const py::object& dev) : device(device_arg(dev)), loss(nn::create_loss(to_json(config))) {}
+  PyLoss(const py::object& config, const py::object& dev)
+      : device(device_arg(dev)), loss(nn::create_loss(to_json(config))) {}
   py::tuple evaluate(const FloatArray& prediction, const FloatArray& target, float scale) {
     const auto cols = prediction.ndim() == 2 ? static_cast<std::uint32_t>(prediction.shape(1)) : 0u;
     const std::uint32_t n = rows_of(prediction, cols, "prediction");
@@ -192,8 +195,9 @@ void bind_owned_common(py::class_<T>& cls) {
       .def_property_readonly("n_input_dims", [](const T& t) { return t.component->n_input_dims(); })
       .def_property_readonly("n_output_dims", [](const T& t) { return t.component->n_output_dims(); })
       .def_property_readonly("type", [](const T& t) { return t.component->type(); })
-      .def_property_readonly("hyperparams", [](const T& t) { return json_to_python(t.component->hyperparams()); },
-                             "resolved hyperparameters (dict with 'type')")
+      .def_property_readonly(
+          "hyperparams", [](const T& t) { return json_to_python(t.component->hyperparams()); },
+          "resolved hyperparameters (dict with 'type')")
       .def_property_readonly("device", [](const T& t) { return t.device; });
 }
 
@@ -223,18 +227,21 @@ void bind_nn(py::module_& root) {
            "Returns (dL/dx, dL/dparams) for the given dL/d(output).");
   bind_owned_common(net);
 
-  py::class_<PyLoss>(m, "Loss", "Loss(config, device=None): {\"type\": \"L2\" | \"RelativeL2\" | \"ToneMappedL2\" | \"SrgbL2\"}.")
+  py::class_<PyLoss>(m, "Loss",
+                     "Loss(config, device=None): {\"type\": \"L2\" | \"RelativeL2\" | \"ToneMappedL2\" | \"SrgbL2\"}.")
       .def(py::init<const py::object&, const py::object&>(), py::arg("config"), py::arg("device") = py::none())
       .def("evaluate", &PyLoss::evaluate, py::arg("prediction"), py::arg("target"), py::arg("scale") = 1.0f,
            "Returns (mean loss, dL/dprediction times scale).")
       .def_property_readonly("hyperparams", [](const PyLoss& l) { return json_to_python(l.loss->hyperparams()); });
 
-  py::class_<PyOptimizer>(m, "Optimizer", "Optimizer(config, device=None): {\"type\": \"Adam\", \"learning_rate\": ...}.")
+  py::class_<PyOptimizer>(m, "Optimizer",
+                          "Optimizer(config, device=None): {\"type\": \"Adam\", \"learning_rate\": ...}.")
       .def(py::init<const py::object&, const py::object&>(), py::arg("config"), py::arg("device") = py::none())
       .def("step", &PyOptimizer::step, py::arg("params"), py::arg("grads"), "One update; returns the new parameters.")
       .def_property_readonly("step_count", [](const PyOptimizer& o) { return o.optimizer->step_count(); })
       .def_property_readonly("learning_rate", [](const PyOptimizer& o) { return o.optimizer->learning_rate(); })
-      .def_property_readonly("hyperparams", [](const PyOptimizer& o) { return json_to_python(o.optimizer->hyperparams()); });
+      .def_property_readonly("hyperparams",
+                             [](const PyOptimizer& o) { return json_to_python(o.optimizer->hyperparams()); });
 
   m.def("config_reference", &config_reference_markdown, "The configuration reference (docs/config.md) as Markdown.");
 }

@@ -33,8 +33,8 @@ ClError::ClError(int code, const std::string& call, const char* file, int line)
 
 BuildError::BuildError(const std::string& program, const std::string& device, const std::string& options,
                        const std::string& log, const std::string& source_path)
-    : DeviceError("OpenCL program '" + program + "' failed to build on " + device + "\n  options: " +
-                  (options.empty() ? "(none)" : options) + "\n  source saved to: " + source_path +
+    : DeviceError("OpenCL program '" + program + "' failed to build on " + device +
+                  "\n  options: " + (options.empty() ? "(none)" : options) + "\n  source saved to: " + source_path +
                   "\n  build log:\n" + log),
       m_program(program),
       m_device(device),

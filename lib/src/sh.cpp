@@ -12,8 +12,7 @@ std::vector<double> eval(int l_max, const std::array<double, 3>& dir) {
     throw InvalidArgument("sh::eval: l_max must be in [0, " + std::to_string(kMaxBand) + "], got " +
                           std::to_string(l_max));
   const double len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-  if (!std::isfinite(len) || len == 0.0)
-    throw InvalidArgument("sh::eval: the direction must be finite and non-zero");
+  if (!std::isfinite(len) || len == 0.0) throw InvalidArgument("sh::eval: the direction must be finite and non-zero");
   const double x = dir[0] / len, y = dir[1] / len, z = dir[2] / len;
   std::vector<double> out(n_coefficients(l_max));
   double cm = 1.0, sm = 0.0;  // Re, Im (x + i y)^m = sin^m(theta) cos(m phi), sin^m(theta) sin(m phi)
@@ -31,9 +30,12 @@ std::vector<double> eval(int l_max, const std::array<double, 3>& dir) {
     double q2 = 0.0, q1 = 0.0;
     for (int l = m; l <= l_max; ++l) {
       double q;
-      if (l == m) q = qmm;
-      else if (l == m + 1) q = (2.0 * m + 1.0) * z * q1;
-      else q = ((2.0 * l - 1.0) * z * q1 - (l + m - 1.0) * q2) / (l - m);
+      if (l == m)
+        q = qmm;
+      else if (l == m + 1)
+        q = (2.0 * m + 1.0) * z * q1;
+      else
+        q = ((2.0 * l - 1.0) * z * q1 - (l + m - 1.0) * q2) / (l - m);
       if (l > m) ratio *= static_cast<double>(l - m) / static_cast<double>(l + m);
       q2 = q1;
       q1 = q;

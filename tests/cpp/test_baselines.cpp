@@ -299,7 +299,8 @@ TEST(Bi, FineSamplesFollowTheCoarseWeights) {
       sum += d_h[r * na + k];
       for (int a = 0; a < 3; ++a)
         ASSERT_NEAR(pos_h[(std::size_t(r) * na + k) * 3 + a],
-                    r_host[r * render::kRayFloats + a] + t_h[r * na + k] * r_host[r * render::kRayFloats + 4 + a], 1e-4);
+                    r_host[r * render::kRayFloats + a] + t_h[r * na + k] * r_host[r * render::kRayFloats + 4 + a],
+                    1e-4);
     }
     EXPECT_NEAR(sum, tfar - tn, 1e-4);
     for (std::uint32_t i = 0; i < nc; ++i)
@@ -341,9 +342,10 @@ TEST(Bi, GradientsOfBothImagesMatchFiniteDifferences) {
 // (a constant of the render loss).
 struct NervInputs {
   std::uint32_t n_rays = 8, spr = 16, K = 8, pc = 6, n_env = 3;
-  std::vector<float> rays, t, delta, props, dirs, vd, bprops, light_vd;  // props: n x 6 rows; bprops: (nq + n) x pc rows
-  std::vector<float> env_dirs, env_weights, env_vd;                      // n_env x 3, n_env x 3, nq n_env x 2 rows
-  std::vector<double> x_t;                                                // 3 per ray
+  std::vector<float> rays, t, delta, props, dirs, vd, bprops,
+      light_vd;                                      // props: n x 6 rows; bprops: (nq + n) x pc rows
+  std::vector<float> env_dirs, env_weights, env_vd;  // n_env x 3, n_env x 3, nq n_env x 2 rows
+  std::vector<double> x_t;                           // 3 per ray
   float g_scale = 0.95f;
 };
 
@@ -353,8 +355,8 @@ double hg(double mu, double g) {
 }
 
 // sum_r dc_r . (W_r ⊙ E_r) for the inputs (props and bprops may be perturbed; x_t stays).
-double nerv_indirect_reference(const NervInputs& in, const std::vector<double>& props, const std::vector<double>& bprops,
-                               const std::vector<float>& dc) {
+double nerv_indirect_reference(const NervInputs& in, const std::vector<double>& props,
+                               const std::vector<double>& bprops, const std::vector<float>& dc) {
   const std::uint32_t nq = in.n_rays * in.K;
   double out = 0;
   for (std::uint32_t r = 0; r < in.n_rays; ++r) {
@@ -391,16 +393,16 @@ double nerv_indirect_reference(const NervInputs& in, const std::vector<double>& 
 }
 
 TEST(NeRV, IndirectBounceKernelsMatchAHostReferenceAndFiniteDifferences) {
-  // The kernels of the indirect bounce on random inputs (point light and an environment of 3 directions): the colour against a double-precision host reference,
-  // and dL/d(albedo, g) at the bounce points and x_t and dL/d(sigma, albedo) along the ray against central
-  // differences of that reference.
+  // The kernels of the indirect bounce on random inputs (point light and an environment of 3 directions): the colour
+  // against a double-precision host reference, and dL/d(albedo, g) at the bounce points and x_t and dL/d(sigma, albedo)
+  // along the ray against central differences of that reference.
   const Device dev = test::test_device();
   NervInputs in;
   const std::uint32_t n = in.n_rays * in.spr, nq = in.n_rays * in.K;
   Scene1 sc;
   Buffer<float> rays(dev, std::size_t(in.n_rays) * render::kRayFloats);
-  render::image_rays(dev, Camera::look_at({0.3f, -3.5f, 1.0f}, {0, 0, 0}, {0, 0, 1}, 0.5f, 4, 2), sc.light, 0, in.n_rays,
-                     rays);
+  render::image_rays(dev, Camera::look_at({0.3f, -3.5f, 1.0f}, {0, 0, 0}, {0, 0, 1}, 0.5f, 4, 2), sc.light, 0,
+                     in.n_rays, rays);
   render::RendererSettings rs;
   rs.n_samples = in.spr;
   rs.sh_lmax = -1;
@@ -536,7 +538,8 @@ TEST(NeRV, MarchTargetsMatchAHomogeneousSphere) {
     for (int y = 0; y < res; ++y)
       for (int x = 0; x < res; ++x) {
         const double p[3] = {(x + 0.5) / res * 2 - 1, (y + 0.5) / res * 2 - 1, (z + 0.5) / res * 2 - 1};
-        grid[(std::size_t(z) * res + y) * res + x] = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) < radius ? sigma : 0.0;
+        grid[(std::size_t(z) * res + y) * res + x] =
+            std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) < radius ? sigma : 0.0;
       }
   Buffer<float> g(dev, grid);
   std::mt19937 rng(3);
@@ -546,7 +549,8 @@ TEST(NeRV, MarchTargetsMatchAHomogeneousSphere) {
   for (std::uint32_t s = 0; s < n; ++s) {
     double x[3], w[3], wn = 0;
     for (int a = 0; a < 3; ++a) x[a] = 0.7 * u(rng), w[a] = u(rng), wn += w[a] * w[a];
-    for (int a = 0; a < 3; ++a) rows[s * 6 + a] = float(0.5 * x[a] + 0.5), rows[s * 6 + 3 + a] = float(w[a] / std::sqrt(wn));
+    for (int a = 0; a < 3; ++a)
+      rows[s * 6 + a] = float(0.5 * x[a] + 0.5), rows[s * 6 + 3 + a] = float(w[a] / std::sqrt(wn));
   }
   nn::BatchMatrix in(dev, n, 6), out(dev, n, 2);
   in.upload_row_major(rows);
@@ -591,7 +595,6 @@ TEST(NeRV, RenderGradientMatchesFiniteDifferences) {
   check_gradients(model, 0, 0, model.n_params());
 }
 
-
 // ---- every method trains, checkpoints and reloads ----------------------------------------------------------------
 
 class MethodsTrain : public ::testing::TestWithParam<std::string> {
@@ -600,7 +603,8 @@ class MethodsTrain : public ::testing::TestWithParam<std::string> {
     s_dir = new test::TempDir("baselines");
     const DatasetSettings s = test::tiny_dataset(6, 4);
     generate_dataset(test::test_device(), Scene::from_json(Scene::builtin_json("cloud", 1, 16)), dataset("cloud"), s);
-    generate_dataset(test::test_device(), Scene::from_json(Scene::builtin_json("spheres", 1, 16)), dataset("spheres"), s);
+    generate_dataset(test::test_device(), Scene::from_json(Scene::builtin_json("spheres", 1, 16)), dataset("spheres"),
+                     s);
   }
   static void TearDownTestSuite() {
     delete s_dir;
@@ -614,13 +618,17 @@ test::TempDir* MethodsTrain::s_dir = nullptr;
 Json tiny_config(const std::string& method) {
   Json model = method == "bi" ? tiny_bi() : method == "nerv" ? tiny_nerv() : tiny_ours();
   // A small hash grid gives the property net the capacity to fit the scene in a few hundred steps.
-  model["property"]["encoding"] = {{"type", "HashGrid"}, {"n_levels", 6}, {"n_features_per_level", 2},
+  model["property"]["encoding"] = {{"type", "HashGrid"},      {"n_levels", 6},        {"n_features_per_level", 2},
                                    {"log2_hashmap_size", 14}, {"base_resolution", 4}, {"per_level_scale", 1.5}};
   if (method == "bi") model["coarse"]["encoding"] = model["property"]["encoding"];
   return {{"method", method},
           {"model", model},
-          {"training", {{"batch_rays", 256}, {"validate_every", 100000}, {"checkpoint_every", 0}, {"log_every", 50},
-                        {"validation_views", 1}}}};
+          {"training",
+           {{"batch_rays", 256},
+            {"validate_every", 100000},
+            {"checkpoint_every", 0},
+            {"log_every", 50},
+            {"validation_views", 1}}}};
 }
 
 TEST_P(MethodsTrain, TrainsToAStatedPsnrAndReloadsIdentically) {

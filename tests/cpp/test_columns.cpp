@@ -45,7 +45,8 @@ TEST(Columns, ScaleRgbBlocksByTheirRaysIntensity) {
   const auto out = dst.download_row_major();
   for (std::uint32_t s = 0; s < n; ++s)
     for (std::uint32_t c = 0; c < 3 * per; ++c)
-      EXPECT_EQ(out[s * (1 + 3 * per) + 1 + c], rays[(s / spr) * 20 + 12 + c / per] * h[s * 3 * per + c]) << s << " " << c;
+      EXPECT_EQ(out[s * (1 + 3 * per) + 1 + c], rays[(s / spr) * 20 + 12 + c / per] * h[s * 3 * per + c])
+          << s << " " << c;
   EXPECT_THROW(nn::scale_rgb_by_ray_intensity(d, rb, 24, src, 0, dst, 1, per), InvalidArgument);
 }
 

@@ -38,11 +38,13 @@ std::string error_of(const Json& j) {
 
 TEST(Config, DefaultsAndResolvedHyperparameters) {
   Json resolved;
-  auto t = make_registry().create(Json{{"otype", "plain"}, {"n_neurons", 128}, {"activation", "sigmoid"}}, "", &resolved);
+  auto t =
+      make_registry().create(Json{{"otype", "plain"}, {"n_neurons", 128}, {"activation", "sigmoid"}}, "", &resolved);
   EXPECT_EQ(t->width, 128u);
   EXPECT_FLOAT_EQ(t->lr, 0.01f);
   EXPECT_EQ(t->activation, "Sigmoid");  // canonical spelling
-  EXPECT_EQ(resolved, (Json{{"type", "Plain"}, {"n_neurons", 128}, {"learning_rate", 0.01f}, {"activation", "Sigmoid"}}));
+  EXPECT_EQ(resolved,
+            (Json{{"type", "Plain"}, {"n_neurons", 128}, {"learning_rate", 0.01f}, {"activation", "Sigmoid"}}));
   // Building from the resolved config gives the same thing.
   auto again = make_registry().create(resolved, "");
   EXPECT_EQ(again->width, 128u);
@@ -53,13 +55,15 @@ TEST(Config, ErrorsNameThePointerAndTheValidChoices) {
             "/network/n_neurons: must be one of 16, 32, 64, 128, 256; got 48 @/network/n_neurons");
   EXPECT_EQ(error_of({{"n_neurons", "64"}}),
             "/network/n_neurons: must be one of 16, 32, 64, 128, 256; got \"64\" @/network/n_neurons");
-  EXPECT_EQ(error_of({{"learning_rate", 2.0}}), "/network/learning_rate: must be in [0, 1], got 2.0 @/network/learning_rate");
+  EXPECT_EQ(error_of({{"learning_rate", 2.0}}),
+            "/network/learning_rate: must be in [0, 1], got 2.0 @/network/learning_rate");
   EXPECT_EQ(error_of({{"learning_rate", "fast"}}),
             "/network/learning_rate: must be a number in [0, 1], got a string \"fast\" @/network/learning_rate");
   EXPECT_EQ(error_of({{"n_neuron", 64}}),
             "/network/n_neuron: unknown key 'n_neuron' for Plain; valid keys: n_neurons, learning_rate, activation "
             "@/network/n_neuron");
-  EXPECT_EQ(error_of({{"type", "Fancy"}}), "/network/type: unknown thing type 'Fancy'; valid types: Plain @/network/type");
+  EXPECT_EQ(error_of({{"type", "Fancy"}}),
+            "/network/type: unknown thing type 'Fancy'; valid types: Plain @/network/type");
   EXPECT_EQ(error_of({{"activation", "gelu"}}),
             "/network/activation: must be one of None, ReLU, Sigmoid; got \"gelu\" @/network/activation");
   EXPECT_EQ(error_of(Json::array()), "/network: thing config must be a JSON object, got [] @/network");

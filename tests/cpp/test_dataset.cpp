@@ -52,7 +52,8 @@ TEST(Dataset, PlanFollowsTheLightingProtocols) {
   EXPECT_LT(lo, 80);  // stratified over the range
   EXPECT_GT(hi, 870);
   for (int dist : {3, 5, 7, 10})
-    for (const auto& f : d.splits.at("test_distance_" + std::to_string(dist))) EXPECT_NEAR(norm(f.light.position), dist, 1e-4);
+    for (const auto& f : d.splits.at("test_distance_" + std::to_string(dist)))
+      EXPECT_NEAR(norm(f.light.position), dist, 1e-4);
   for (int inten : {400, 800, 1200, 1600})
     for (const auto& f : d.splits.at("test_intensity_" + std::to_string(inten))) {
       EXPECT_EQ(f.light.intensity[1], float(inten));

@@ -101,9 +101,7 @@ TEST(Device, SameDeviceSharesContextAndProgramCache) {
   EXPECT_EQ(a.cached_programs(), cached);
 }
 
-TEST(Device, SelectAllMatchesEverything) {
-  EXPECT_EQ(Device::select_all("all").size(), list_devices().size());
-}
+TEST(Device, SelectAllMatchesEverything) { EXPECT_EQ(Device::select_all("all").size(), list_devices().size()); }
 
 TEST(Device, EmptyHandleIsAnError) {
   Device d;

@@ -9,9 +9,9 @@
 namespace relit {
 
 using nn::HashGridEncoding;
-using test::Matrix;
 using reference::reference_forward;
 using reference::reference_param_gradient;
+using test::Matrix;
 
 namespace {
 
@@ -34,10 +34,10 @@ Matrix grid_inputs(std::uint32_t n, std::uint32_t dims, std::uint32_t seed) {
   return x;
 }
 
-const Json kGrid3 = {{"type", "HashGrid"}, {"n_levels", 6}, {"n_features_per_level", 2}, {"log2_hashmap_size", 12},
-                     {"base_resolution", 4}, {"per_level_scale", 1.8}};
-const Json kGrid2 = {{"type", "HashGrid"}, {"n_levels", 4}, {"n_features_per_level", 4}, {"log2_hashmap_size", 10},
-                     {"base_resolution", 8}, {"per_level_scale", 2.0}};
+const Json kGrid3 = {{"type", "HashGrid"},      {"n_levels", 6},        {"n_features_per_level", 2},
+                     {"log2_hashmap_size", 12}, {"base_resolution", 4}, {"per_level_scale", 1.8}};
+const Json kGrid2 = {{"type", "HashGrid"},      {"n_levels", 4},        {"n_features_per_level", 4},
+                     {"log2_hashmap_size", 10}, {"base_resolution", 8}, {"per_level_scale", 2.0}};
 
 }  // namespace
 
@@ -73,11 +73,20 @@ TEST(EncHashGrid, LevelLayout) {
 
 TEST(EncHashGrid, ForwardMatchesReference) {
   const Device device = test::test_device();
-  const std::vector<std::pair<Json, std::uint32_t>> configs = {
-      {kGrid3, 3},
-      {kGrid2, 2},
-      {{{"type", "HashGrid"}, {"n_levels", 3}, {"n_features_per_level", 1}, {"log2_hashmap_size", 10}, {"base_resolution", 6}}, 3},
-      {{{"type", "HashGrid"}, {"n_levels", 2}, {"n_features_per_level", 8}, {"log2_hashmap_size", 10}, {"base_resolution", 20}}, 2}};
+  const std::vector<std::pair<Json, std::uint32_t>> configs = {{kGrid3, 3},
+                                                               {kGrid2, 2},
+                                                               {{{"type", "HashGrid"},
+                                                                 {"n_levels", 3},
+                                                                 {"n_features_per_level", 1},
+                                                                 {"log2_hashmap_size", 10},
+                                                                 {"base_resolution", 6}},
+                                                                3},
+                                                               {{{"type", "HashGrid"},
+                                                                 {"n_levels", 2},
+                                                                 {"n_features_per_level", 8},
+                                                                 {"log2_hashmap_size", 10},
+                                                                 {"base_resolution", 20}},
+                                                                2}};
   for (const auto& [cfg, dims] : configs) {
     auto enc = make_grid(cfg, dims);
     const std::vector<float> params = init_params(*enc, 1.0f, 3);
@@ -85,7 +94,8 @@ TEST(EncHashGrid, ForwardMatchesReference) {
     const Matrix x = grid_inputs(1000, dims, 5);
     const Matrix got = test::device_forward(device, *enc, &p, x);
     const Matrix ref = reference_forward(*enc, params, x);
-    EXPECT_LE(test::worst_ratio(got, ref, 1e-5, 1e-6), 1.0) << cfg.dump() << "\nmax error " << test::max_abs_error(got, ref);
+    EXPECT_LE(test::worst_ratio(got, ref, 1e-5, 1e-6), 1.0)
+        << cfg.dump() << "\nmax error " << test::max_abs_error(got, ref);
   }
 }
 
@@ -139,7 +149,8 @@ TEST(EncHashGrid, ParamGradientMatchesReferenceInAnyOrderAndIsDeterministic) {
     enc->backward(device, {&p, 0}, test::to_device(device, x), test::to_device(device, w), 0, {&g, 0}, true, nullptr,
                   nullptr);
     const std::vector<float> twice = g.read();
-    for (std::size_t i = 0; i < twice.size(); ++i) ASSERT_NEAR(twice[i], 2 * g1[i], 1e-5 * (std::abs(g1[i]) + 1e-3 * scale));
+    for (std::size_t i = 0; i < twice.size(); ++i)
+      ASSERT_NEAR(twice[i], 2 * g1[i], 1e-5 * (std::abs(g1[i]) + 1e-3 * scale));
   }
 }
 
@@ -159,8 +170,10 @@ TEST(EncHashGrid, ParamGradientIsBitIdenticalForAnyNumberOfRanges) {
     Buffer<float> g(device, enc->n_params());
     enc->backward(device, {&p, 0}, test::to_device(device, x), test::to_device(device, w), 0, {&g, 0}, false, nullptr,
                   nullptr);
-    if (first.empty()) first = g.read();
-    else EXPECT_EQ(g.read(), first) << ranges << " ranges";
+    if (first.empty())
+      first = g.read();
+    else
+      EXPECT_EQ(g.read(), first) << ranges << " ranges";
   }
 }
 
@@ -183,7 +196,8 @@ TEST(EncHashGrid, ParamGradientMatchesFiniteDifferencesOfTheForwardKernel) {
                     [&](std::uint32_t a, std::uint32_t b) { return std::abs(grad[a]) > std::abs(grad[b]); });
   order.resize(40);
   std::mt19937 rng(15);
-  for (int i = 0; i < 20; ++i) order.push_back(std::uniform_int_distribution<std::uint32_t>(0, enc->n_params() - 1)(rng));
+  for (int i = 0; i < 20; ++i)
+    order.push_back(std::uniform_int_distribution<std::uint32_t>(0, enc->n_params() - 1)(rng));
   const double h = 0.25;
   for (std::uint32_t i : order) {
     auto loss = [&](float value) {
@@ -210,12 +224,12 @@ TEST(EncHashGrid, InputGradientMatchesFiniteDifferences) {
     nn::BatchMatrix d_in(device, 200, dims + 1);
     enc->backward(device, {&p, 0}, in, 1, test::to_device(device, w), 0, {}, false, &d_in, nullptr);
     const Matrix got = test::to_host(d_in).rightCols(dims);
-    const Matrix fd = test::finite_difference([&](const Matrix& xs) { return reference_forward(*enc, params, xs, false); },
-                                              x, w, 1e-7);
+    const Matrix fd = test::finite_difference(
+        [&](const Matrix& xs) { return reference_forward(*enc, params, xs, false); }, x, w, 1e-7);
     // Samples whose finite difference straddles a cell boundary (a kink) are rare; compare all.
     const double scale = fd.cwiseAbs().maxCoeff();
-    EXPECT_LE(test::worst_ratio(got, fd, 1e-4, 1e-4 * scale), 1.0) << cfg.dump() << "\nmax error "
-                                                                   << test::max_abs_error(got, fd) << " of " << scale;
+    EXPECT_LE(test::worst_ratio(got, fd, 1e-4, 1e-4 * scale), 1.0)
+        << cfg.dump() << "\nmax error " << test::max_abs_error(got, fd) << " of " << scale;
     // Outside [0, 1] the clamped encoding is constant.
     const Matrix out = Matrix::Constant(16, dims, 1.5);
     nn::BatchMatrix d_out_in(device, 16, dims);
@@ -229,8 +243,12 @@ TEST(EncHashGrid, InputGradientMatchesFiniteDifferences) {
 // the forward/backward pair trains. The MLP version of this test belongs with the fused MLP.
 TEST(EncHashGrid, FitsAnImageWithALinearReadout) {
   const Device device = test::test_device();
-  auto enc = make_grid({{"type", "HashGrid"}, {"n_levels", 8}, {"n_features_per_level", 2}, {"log2_hashmap_size", 12},
-                        {"base_resolution", 4}, {"per_level_scale", 1.6}},
+  auto enc = make_grid({{"type", "HashGrid"},
+                        {"n_levels", 8},
+                        {"n_features_per_level", 2},
+                        {"log2_hashmap_size", 12},
+                        {"base_resolution", 4},
+                        {"per_level_scale", 1.6}},
                        2);
   const std::uint32_t side = 64, n = side * side, out_dims = enc->n_output_dims();
   Matrix x(n, 2);

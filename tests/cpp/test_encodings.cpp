@@ -34,7 +34,11 @@ Matrix frequency_reference(const Matrix& x, std::uint32_t n_freq, bool include_i
 // The SH polynomials exactly as the kernel evaluates them (no renormalisation): Q_l^m(z) * Re/Im (x + iy)^m,
 // written from the seed's K_l^m with factorials, independently of relit::sh.
 Matrix sh_polynomial_reference(const Matrix& dirs, int degree) {
-  auto fact = [](int n) { double f = 1; for (int i = 2; i <= n; ++i) f *= i; return f; };
+  auto fact = [](int n) {
+    double f = 1;
+    for (int i = 2; i <= n; ++i) f *= i;
+    return f;
+  };
   Matrix out(dirs.rows(), degree * degree);
   for (Eigen::Index s = 0; s < dirs.rows(); ++s) {
     const double x = dirs(s, 0), y = dirs(s, 1), z = dirs(s, 2);
@@ -44,11 +48,14 @@ Matrix sh_polynomial_reference(const Matrix& dirs, int degree) {
       for (int i = 1; i <= m; ++i) qmm *= -(2.0 * i - 1);
       double q2 = 0, q1 = 0;
       for (int l = m; l < degree; ++l) {
-        const double q = l == m ? qmm : l == m + 1 ? (2 * m + 1) * z * q1 : ((2 * l - 1) * z * q1 - (l + m - 1) * q2) / (l - m);
+        const double q = l == m       ? qmm
+                         : l == m + 1 ? (2 * m + 1) * z * q1
+                                      : ((2 * l - 1) * z * q1 - (l + m - 1) * q2) / (l - m);
         q2 = q1;
         q1 = q;
         const double k = std::sqrt((2 * l + 1) / (4 * M_PI) * fact(l - m) / fact(l + m));
-        if (m == 0) out(s, l * l + l) = k * q;
+        if (m == 0)
+          out(s, l * l + l) = k * q;
         else {
           out(s, l * l + l + m) = std::sqrt(2.0) * k * q * p.real();
           out(s, l * l + l - m) = std::sqrt(2.0) * k * q * p.imag();
@@ -159,8 +166,8 @@ TEST(EncFrequency, MatchesDoubleReferenceAtEveryOctave) {
     const Matrix x = test::random_matrix(1000, 3, -1, 1, 3 + n_freq);
     const Matrix got = forward_at_offsets(device, *enc, nullptr, x);
     const Matrix ref = frequency_reference(x, n_freq, include);
-    EXPECT_LE(test::worst_ratio(got, ref, 0.0, 1e-5), 1.0) << "n_frequencies " << n_freq
-                                                           << ", max error " << test::max_abs_error(got, ref);
+    EXPECT_LE(test::worst_ratio(got, ref, 0.0, 1e-5), 1.0)
+        << "n_frequencies " << n_freq << ", max error " << test::max_abs_error(got, ref);
   }
 }
 
@@ -170,7 +177,8 @@ TEST(EncFrequency, InputGradientMatchesFiniteDifferences) {
   const Matrix x = test::random_matrix(200, 2, -1, 1, 5);
   const Matrix w = test::random_matrix(200, enc->n_output_dims(), -1, 1, 6);
   const Matrix got = device_input_gradient(device, *enc, nullptr, x, w);
-  const Matrix fd = test::finite_difference([](const Matrix& p) { return frequency_reference(p, 10, true); }, x, w, 1e-7);
+  const Matrix fd =
+      test::finite_difference([](const Matrix& p) { return frequency_reference(p, 10, true); }, x, w, 1e-7);
   // Gradients reach pi * 2^9 * 20 ~ 3e4: relative 1e-4 of the largest term's scale.
   const double scale = fd.cwiseAbs().maxCoeff();
   EXPECT_LE(test::worst_ratio(got, fd, 1e-4, 1e-5 * scale), 1.0) << "max error " << test::max_abs_error(got, fd);
@@ -181,7 +189,11 @@ TEST(EncFrequency, InputGradientMatchesFiniteDifferences) {
 TEST(SphericalHarmonics, HostEvalMatchesAssociatedLegendre) {
   // Independent evaluation: theta, phi by trigonometry and std::assoc_legendre (which omits the
   // Condon-Shortley phase; eq. 2's P_l^m includes it, hence (-1)^m).
-  auto fact = [](int n) { double f = 1; for (int i = 2; i <= n; ++i) f *= i; return f; };
+  auto fact = [](int n) {
+    double f = 1;
+    for (int i = 2; i <= n; ++i) f *= i;
+    return f;
+  };
   const Matrix dirs = random_directions(50, 7);
   for (int l_max : {0, 3, 9, 14}) {
     for (Eigen::Index s = 0; s < dirs.rows(); ++s) {
@@ -195,7 +207,7 @@ TEST(SphericalHarmonics, HostEvalMatchesAssociatedLegendre) {
           const int a = std::abs(m);
           const double k = std::sqrt((2 * l + 1) / (4 * M_PI) * fact(l - a) / fact(l + a));
           const double p = (a % 2 ? -1.0 : 1.0) * std::assoc_legendre(l, a, std::cos(theta));
-          const double expected = m > 0 ? std::sqrt(2.0) * k * std::cos(m * phi) * p
+          const double expected = m > 0    ? std::sqrt(2.0) * k * std::cos(m * phi) * p
                                   : m == 0 ? k * p
                                            : std::sqrt(2.0) * k * std::sin(-m * phi) * p;
           ASSERT_NEAR(y[sh::index(l, m)], expected, 1e-11 * (1 + std::abs(expected))) << "l " << l << " m " << m;
@@ -269,8 +281,8 @@ TEST(SphericalHarmonics, KernelMatchesHostReference) {
       for (std::uint32_t i = 0; i < degree * degree; ++i) ref(s, i) = y[i];
     }
     // |Y| <= 1.3 for l < 10; float evaluation of the recurrences: 1e-5 relative to that scale.
-    EXPECT_LE(test::worst_ratio(got, ref, 1e-5, 1e-5), 1.0) << "degree " << degree << ", max error "
-                                                            << test::max_abs_error(got, ref);
+    EXPECT_LE(test::worst_ratio(got, ref, 1e-5, 1e-5), 1.0)
+        << "degree " << degree << ", max error " << test::max_abs_error(got, ref);
     // The polynomials (used for the gradient check) equal sh::eval on the sphere; the float-rounded
     // directions are unit only to ~1e-7, which the polynomials amplify by up to ~l^2.
     EXPECT_LE(test::max_abs_error(sh_polynomial_reference(dirs, static_cast<int>(degree)), ref), 1e-5);
@@ -284,11 +296,11 @@ TEST(SphericalHarmonics, DirectionGradientMatchesFiniteDifferences) {
     const Matrix dirs = random_directions(150, 17);
     const Matrix w = test::random_matrix(150, degree * degree, -1, 1, 19);
     const Matrix got = device_input_gradient(device, *enc, nullptr, dirs, w);
-    const Matrix fd = test::finite_difference([&](const Matrix& d) { return sh_polynomial_reference(d, degree); },
-                                              dirs, w, 1e-6);
+    const Matrix fd =
+        test::finite_difference([&](const Matrix& d) { return sh_polynomial_reference(d, degree); }, dirs, w, 1e-6);
     const double scale = fd.cwiseAbs().maxCoeff();
-    EXPECT_LE(test::worst_ratio(got, fd, 1e-4, 1e-4 * scale), 1.0) << "degree " << degree << ", max error "
-                                                                   << test::max_abs_error(got, fd);
+    EXPECT_LE(test::worst_ratio(got, fd, 1e-4, 1e-4 * scale), 1.0)
+        << "degree " << degree << ", max error " << test::max_abs_error(got, fd);
   }
 }
 
@@ -298,9 +310,10 @@ TEST(EncComposite, ConcatenatesNestedEncodingsAndTheirGradients) {
   const Device device = test::test_device();
   const Json cfg = {{"type", "Composite"},
                     {"nested",
-                     {{{"type", "Frequency"}, {"n_dims_to_encode", 2}, {"n_frequencies", 3}},
-                      {{"otype", "SphericalHarmonics"}, {"degree", 3}},
-                      }}};
+                     {
+                         {{"type", "Frequency"}, {"n_dims_to_encode", 2}, {"n_frequencies", 3}},
+                         {{"otype", "SphericalHarmonics"}, {"degree", 3}},
+                     }}};
   Json resolved;
   auto enc = nn::encodings().create(cfg, "/encoding", 5, &resolved);
   EXPECT_EQ(enc->n_input_dims(), 5u);
@@ -353,19 +366,23 @@ TEST(EncConfig, ErrorsNameTheJsonPointer) {
   EXPECT_TRUE(starts(config_error({{"type", "SphericalHarmonics"}}, 2), "/encoding | "));
   EXPECT_TRUE(starts(config_error({{"type", "HashGrid"}, {"n_features_per_level", 3}}, 3),
                      "/encoding/n_features_per_level | "));
-  EXPECT_TRUE(starts(config_error({{"type", "HashGrid"}, {"log2_hashmap_size", 30}}, 3), "/encoding/log2_hashmap_size | "));
+  EXPECT_TRUE(
+      starts(config_error({{"type", "HashGrid"}, {"log2_hashmap_size", 30}}, 3), "/encoding/log2_hashmap_size | "));
   EXPECT_TRUE(starts(config_error({{"type", "HashGrid"}}, 4), "/encoding | "));
   // A resolution beyond what float positions resolve is refused with the keys to change.
   const std::string fine = config_error({{"type", "HashGrid"}, {"n_levels", 32}, {"per_level_scale", 2.0}}, 3);
   EXPECT_TRUE(starts(fine, "/encoding | ")) << fine;
   EXPECT_NE(fine.find("per_level_scale"), std::string::npos) << fine;
-  const Json bad_nested = {{"type", "Composite"},
-                           {"nested", {{{"type", "HashGrid"}, {"n_dims_to_encode", 3}, {"n_level", 8}}, {{"type", "Identity"}}}}};
+  const Json bad_nested = {
+      {"type", "Composite"},
+      {"nested", {{{"type", "HashGrid"}, {"n_dims_to_encode", 3}, {"n_level", 8}}, {{"type", "Identity"}}}}};
   EXPECT_TRUE(starts(config_error(bad_nested, 4), "/encoding/nested/0/n_level | ")) << config_error(bad_nested, 4);
-  EXPECT_TRUE(starts(config_error({{"type", "Composite"}, {"nested", {{{"type", "Identity"}, {"n_dims_to_encode", 5}}}}}, 4),
-                     "/encoding/nested/0/n_dims_to_encode | "));
-  EXPECT_TRUE(starts(config_error({{"type", "Composite"}, {"nested", {{{"type", "Identity"}, {"n_dims_to_encode", 2}}}}}, 4),
-                     "/encoding/nested | "));
+  EXPECT_TRUE(
+      starts(config_error({{"type", "Composite"}, {"nested", {{{"type", "Identity"}, {"n_dims_to_encode", 5}}}}}, 4),
+             "/encoding/nested/0/n_dims_to_encode | "));
+  EXPECT_TRUE(
+      starts(config_error({{"type", "Composite"}, {"nested", {{{"type", "Identity"}, {"n_dims_to_encode", 2}}}}}, 4),
+             "/encoding/nested | "));
   EXPECT_TRUE(starts(config_error({{"type", "Composite"}, {"nested", Json::array()}}, 4), "/encoding/nested | "));
 }
 

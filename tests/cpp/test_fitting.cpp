@@ -37,10 +37,16 @@ TEST(Fitting, HashGridMlpLearnsAnImageTo30dB) {
       rgb.push_back(float(0.5 + 0.4 * std::sin(2 * kPi * 5 * u) * std::cos(2 * kPi * 3 * v)));
       rgb.push_back(float(v > 0.5 ? 0.8 * v : 0.2 + 0.1 * std::sin(40 * u)));
     }
-  const Json config = {{"encoding", {{"type", "HashGrid"}, {"n_levels", 8}, {"n_features_per_level", 2},
-                                     {"log2_hashmap_size", 14}, {"base_resolution", 8}, {"per_level_scale", 1.5}}},
-                       {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2},
-                                    {"output_activation", "Sigmoid"}}}};
+  const Json config = {
+      {"encoding",
+       {{"type", "HashGrid"},
+        {"n_levels", 8},
+        {"n_features_per_level", 2},
+        {"log2_hashmap_size", 14},
+        {"base_resolution", 8},
+        {"per_level_scale", 1.5}}},
+      {"network",
+       {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}, {"output_activation", "Sigmoid"}}}};
   nn::Trainer trainer(d, nn::NetworkWithInputEncoding::create(config, 2, 3), nn::create_loss({{"type", "L2"}}),
                       nn::create_optimizer({{"type", "Adam"}, {"learning_rate", 1e-2}, {"epsilon", 1e-15}}), 1);
   BatchMatrix in(d, n, 2), target(d, n, 3), out(d, n, 3);

@@ -17,8 +17,8 @@
 namespace relit::nn {
 namespace {
 
-using reference::Mat;
 using reference::flatten;
+using reference::Mat;
 using reference::to_mat;
 using reference::worst_ratio;
 using Reference = reference::MlpReference;
@@ -33,7 +33,6 @@ std::unique_ptr<FullyFusedMLP> make_mlp(const Json& config, std::uint32_t n_in, 
 
 using reference::random_vector;
 
-
 struct Case {
   const char* name;
   std::uint32_t n_in, n_out;
@@ -45,18 +44,33 @@ void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
 std::vector<Case> cases() {
   return {
       {"w16_L1", 3, 1, {{"n_neurons", 16}, {"n_hidden_layers", 1}}},
-      {"w32_L2_skip_heads", 7, 6,
-       {{"n_neurons", 32}, {"n_hidden_layers", 2}, {"skip_layers", {1}},
+      {"w32_L2_skip_heads",
+       7,
+       6,
+       {{"n_neurons", 32},
+        {"n_hidden_layers", 2},
+        {"skip_layers", {1}},
         {"output_heads",
-         {{{"n_dims", 1}, {"activation", "Softplus"}}, {{"n_dims", 3}, {"activation", "Sigmoid"}},
-          {{"n_dims", 1}, {"activation", "Tanh"}}, {{"n_dims", 1}, {"activation", "None"}}}}}},
+         {{{"n_dims", 1}, {"activation", "Softplus"}},
+          {{"n_dims", 3}, {"activation", "Sigmoid"}},
+          {{"n_dims", 1}, {"activation", "Tanh"}},
+          {{"n_dims", 1}, {"activation", "None"}}}}}},
       {"w64_L3_small_net", 32, 16, {{"n_neurons", 64}, {"n_hidden_layers", 3}, {"output_activation", "ReLU"}}},
-      {"w128_L2_skip_sigmoid", 19, 4,
+      {"w128_L2_skip_sigmoid",
+       19,
+       4,
        {{"n_neurons", 128}, {"n_hidden_layers", 2}, {"skip_layers", {1}}, {"output_activation", "Sigmoid"}}},
-      {"w256_L3_skip_nobias", 63, 16,
+      {"w256_L3_skip_nobias",
+       63,
+       16,
        {{"n_neurons", 256}, {"n_hidden_layers", 3}, {"skip_layers", {2}}, {"bias", false}}},
-      {"w64_L4_linear_heads_2skips", 5, 9,
-       {{"n_neurons", 64}, {"n_hidden_layers", 4}, {"activation", "None"}, {"skip_layers", {1, 3}},
+      {"w64_L4_linear_heads_2skips",
+       5,
+       9,
+       {{"n_neurons", 64},
+        {"n_hidden_layers", 4},
+        {"activation", "None"},
+        {"skip_layers", {1, 3}},
         {"bias", false},
         {"output_heads", {{{"n_dims", 2}, {"activation", "Tanh"}}, {{"n_dims", 7}, {"activation", "Softplus"}}}}}},
   };
@@ -160,8 +174,10 @@ struct Small {
     Json cfg = {{"n_neurons", 16},
                 {"n_hidden_layers", 3},
                 {"skip_layers", {2}},
-                {"output_heads", {{{"n_dims", 1}, {"activation", "Softplus"}}, {{"n_dims", 2}, {"activation", "Sigmoid"}},
-                                  {{"n_dims", 1}, {"activation", "Tanh"}}}}};
+                {"output_heads",
+                 {{{"n_dims", 1}, {"activation", "Softplus"}},
+                  {{"n_dims", 2}, {"activation", "Sigmoid"}},
+                  {{"n_dims", 1}, {"activation", "Tanh"}}}}};
     cfg.update(extra);
     net = make_mlp(cfg, n_in, n_out);
     params.resize(net->n_params());
@@ -273,7 +289,8 @@ TEST(FullyFusedMLP, GradientsMatchCentralFiniteDifferences) {
     p[idx] = s.params[idx] - h_ref;
     const double rm = ref_loss(p, xh);
     const double step = double(s.params[idx] + h_ref) - double(s.params[idx] - h_ref);  // the float step taken
-    EXPECT_NEAR(ref_dp[idx], (rp - rm) / step, 1e-6 * (1 + std::abs(ref_dp[idx]))) << "parameter " << idx << " (reference FD)";
+    EXPECT_NEAR(ref_dp[idx], (rp - rm) / step, 1e-6 * (1 + std::abs(ref_dp[idx])))
+        << "parameter " << idx << " (reference FD)";
   }
   for (int i = 0; i < 12; ++i) {
     const std::size_t idx = pick() % xh.size();
@@ -306,7 +323,8 @@ TEST(FullyFusedMLP, InitialisationIsDeterministicAndScaled) {
 }
 
 TEST(FullyFusedMLP, ParameterCountAndHyperparameters) {
-  auto net = make_mlp({{"otype", "FullyFusedMLP"}, {"n_neurons", 32}, {"n_hidden_layers", 2}, {"skip_layers", {1}}}, 3, 2);
+  auto net =
+      make_mlp({{"otype", "FullyFusedMLP"}, {"n_neurons", 32}, {"n_hidden_layers", 2}, {"skip_layers", {1}}}, 3, 2);
   // (3+1)*32 + (32+3+1)*32 + (32+1)*2
   EXPECT_EQ(net->n_params(), 4u * 32 + 36u * 32 + 33u * 2);
   const Json hp = net->hyperparams();
@@ -334,8 +352,8 @@ TEST(FullyFusedMLP, ConfigErrorsNameTheKey) {
   expect_config_error({{"output_heads", {{{"n_dims", 1}}, {{"n_dims", 2}}}}}, "/network/output_heads", "sum to 3");
   expect_config_error({{"n_hidden_layers", 3}, {"skip_layers", {3}}}, "/network/skip_layers", "[1, 2]");
   expect_config_error({{"n_hidden_layers", 3}, {"skip_layers", {0}}}, "/network/skip_layers/0", "[1,");
-  expect_config_error({{"output_activation", "Sigmoid"}, {"output_heads", {{{"n_dims", 4}}}}},
-                      "/network/output_heads", "not both");
+  expect_config_error({{"output_activation", "Sigmoid"}, {"output_heads", {{{"n_dims", 4}}}}}, "/network/output_heads",
+                      "not both");
   expect_config_error({{"output_heads", {{{"n_dims", 4}, {"activation", "Swish"}}}}},
                       "/network/output_heads/0/activation", "Softplus");
   expect_config_error({{"activation", "Sigmoid"}}, "/network/activation", "ReLU");

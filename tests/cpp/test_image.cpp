@@ -84,7 +84,12 @@ TEST(Image, AtomicWriteKeepsTheOldFileWhenWritingFails) {
 
 TEST(Progress, TrackerReportsRateEtaAndCancels) {
   std::vector<Progress> seen;
-  ProgressTracker t([&](const Progress& p) { seen.push_back(p); return p.done < 3; }, 10, "views");
+  ProgressTracker t(
+      [&](const Progress& p) {
+        seen.push_back(p);
+        return p.done < 3;
+      },
+      10, "views");
   t.update(1, "a");
   t.update(2, "b");
   EXPECT_THROW(t.update(3, "c"), Cancelled);

@@ -58,7 +58,7 @@ TEST(Loss, HandComputedValues) {
   const Device d = test::test_device();
   const std::vector<float> p = {1, 2, 3, 4}, t = {0, 2, 1, 1};
   const auto l2 = evaluate(d, "L2", 2, 2, p, t);
-  EXPECT_NEAR(l2.value, (1 + 0 + 4 + 9) / 4.0, 1e-6);  // 3.5
+  EXPECT_NEAR(l2.value, (1 + 0 + 4 + 9) / 4.0, 1e-6);                // 3.5
   EXPECT_EQ(l2.grad, (std::vector<float>{0.5f, 0.0f, 1.0f, 1.5f}));  // 2 d / 4
   // (1/1.01 + 0 + 4/9.01 + 9/16.01) / 4
   EXPECT_NEAR(evaluate(d, "RelativeL2", 2, 2, p, t).value, 0.4990497080905296, 1e-6);

@@ -34,7 +34,8 @@ struct TinyBatch {
   static constexpr std::uint32_t n = 16;
   Buffer<float> rays;
   render::IndirectBasis basis;
-  TinyBatch(const Device& dev, int sh_lmax = 1) : rays(dev, std::size_t(n) * render::kRayFloats), basis(dev, 8, sh_lmax) {
+  TinyBatch(const Device& dev, int sh_lmax = 1)
+      : rays(dev, std::size_t(n) * render::kRayFloats), basis(dev, 8, sh_lmax) {
     const Scene1 sc;
     render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
     basis.draw(1, 0);

@@ -70,7 +70,8 @@ struct ProbeScene {
 };
 
 // Optical depth of scale * grid along o + t d over [t0, t1]: midpoint rule in double.
-double optical_depth(const Grid& g, double scale, const double o[3], const double d[3], double t0, double t1, int steps) {
+double optical_depth(const Grid& g, double scale, const double o[3], const double d[3], double t0, double t1,
+                     int steps) {
   double sum = 0;
   const double dt = (t1 - t0) / steps;
   for (int i = 0; i < steps; ++i) {
@@ -116,9 +117,11 @@ TEST(PathTraceSampling, HgSamplesHaveDensityEqualToThePhaseFunction) {
       ASSERT_NEAR(v.s[3], hg(-mu, g), 2e-3 * hg(-mu, g) + 1e-6) << "pdf != phase value, g = " << g;
       mean_cos += mu;
       // Exact CDF of the HG cosine: bins of equal probability.
-      const double cdf = std::abs(g) < 1e-3 ? (mu + 1) / 2
-                                            : (1 - g * g) / (2 * g) * (1 / std::sqrt(1 + g * g - 2 * g * mu) - 1 / (1 + g));
-      const double phi = std::atan2(v.s[0] * b[0] + v.s[1] * b[1] + v.s[2] * b[2], v.s[0] * t[0] + v.s[1] * t[1] + v.s[2] * t[2]);
+      const double cdf = std::abs(g) < 1e-3
+                             ? (mu + 1) / 2
+                             : (1 - g * g) / (2 * g) * (1 / std::sqrt(1 + g * g - 2 * g * mu) - 1 / (1 + g));
+      const double phi =
+          std::atan2(v.s[0] * b[0] + v.s[1] * b[1] + v.s[2] * b[2], v.s[0] * t[0] + v.s[1] * t[1] + v.s[2] * t[2]);
       const int i = std::min(int(cdf * bm), bm - 1), j = std::min(int((phi + kPi) / (2 * kPi) * bp), bp - 1);
       count[i * bp + j] += 1;
     }
@@ -181,7 +184,8 @@ TEST(PathTraceTransmittance, RatioAndDeltaTrackingMatchExpMinusOpticalDepth) {
     Grid grid;
     float scale;
   };
-  std::vector<Case> cases = {{"homogeneous cube", Grid(8, 8, 8, 1, 1.0f), 1.5f}, {"cloud", make_cloud(24, 3).density, 6.0f}};
+  std::vector<Case> cases = {{"homogeneous cube", Grid(8, 8, 8, 1, 1.0f), 1.5f},
+                             {"cloud", make_cloud(24, 3).density, 6.0f}};
   const cl_uint rays = 48, samples = 4000;
   for (const auto& c : cases) {
     std::vector<cl_float4> data;
@@ -205,7 +209,8 @@ TEST(PathTraceTransmittance, RatioAndDeltaTrackingMatchExpMinusOpticalDepth) {
     const auto res = out.read();
     for (cl_uint r = 0; r < rays; ++r) {
       const double T = expected[r];
-      const double ratio_sd = std::sqrt(std::max(double(res[r].s[2]) - double(res[r].s[0]) * res[r].s[0], 1e-8) / samples);
+      const double ratio_sd =
+          std::sqrt(std::max(double(res[r].s[2]) - double(res[r].s[0]) * res[r].s[0], 1e-8) / samples);
       const double delta_sd = std::sqrt(std::max(T * (1 - T), 1e-8) / samples);
       EXPECT_NEAR(res[r].s[0], T, 5 * ratio_sd + 1e-3) << c.name << " ray " << r << ": ratio tracking";
       EXPECT_NEAR(res[r].s[1], T, 5 * delta_sd + 1e-3) << c.name << " ray " << r << ": delta tracking";
@@ -220,8 +225,11 @@ TEST(PathTraceTransmittance, RatioAndDeltaTrackingMatchExpMinusOpticalDepth) {
 
 TEST(PathTraceRender, WhiteFurnaceRendersTheEnvironmentRadianceEverywhere) {
   const Device dev = test::test_device();
-  Json j = {{"medium", {{"source", {{"type", "cloud"}, {"resolution", 24}, {"seed", 2}}}, {"density_scale", 8.0},
-                        {"albedo", 1.0}, {"g", 0.5}}},
+  Json j = {{"medium",
+             {{"source", {{"type", "cloud"}, {"resolution", 24}, {"seed", 2}}},
+              {"density_scale", 8.0},
+              {"albedo", 1.0},
+              {"g", 0.5}}},
             {"environment", {{"radiance", {0.7, 0.7, 0.7}}, {"visible", true}}},
             {"cameras", {{{"position", {0.3, -3.0, 0.4}}, {"camera_angle_x", 0.45}, {"width", 12}, {"height", 12}}}}};
   const Scene scene = Scene::from_json(j);
@@ -246,8 +254,11 @@ TEST(PathTraceRender, SingleScatteringMatchesNumericalIntegration) {
   const float sigma = 1.2f;
   const Float3 albedo{0.9f, 0.6f, 0.3f};
   const float g = 0.4f;
-  Json j = {{"medium", {{"source", {{"type", "sphere"}, {"resolution", 32}, {"radius", 0.7}}}, {"density_scale", sigma},
-                        {"albedo", albedo}, {"g", g}}},
+  Json j = {{"medium",
+             {{"source", {{"type", "sphere"}, {"resolution", 32}, {"radius", 0.7}}},
+              {"density_scale", sigma},
+              {"albedo", albedo},
+              {"g", g}}},
             {"lights", {{{"position", {1.5, -2.0, 2.5}}, {"intensity", {40, 40, 40}}}}},
             {"cameras", {{{"position", {0.0, -4.0, 0.3}}, {"camera_angle_x", 0.55}, {"width", 8}, {"height", 8}}}}};
   const Scene scene = Scene::from_json(j);
@@ -301,7 +312,8 @@ TEST(PathTraceRender, SingleScatteringMatchesNumericalIntegration) {
     for (int c = 0; c < 4; ++c) {
       const double e = expected.pixels[p * 4 + c], a = r.image.pixels[p * 4 + c];
       const double sd = std::sqrt(r.variance.pixels[p * 4 + c] / rs.spp);
-      EXPECT_NEAR(a, e, 5 * sd + 0.01 * e + 1e-4) << "pixel " << p << " channel " << c << dump_images("single-scatter", r.image, expected);
+      EXPECT_NEAR(a, e, 5 * sd + 0.01 * e + 1e-4)
+          << "pixel " << p << " channel " << c << dump_images("single-scatter", r.image, expected);
       if (c == 0) total += e;
     }
   EXPECT_GT(total, 0.5) << "the reference image must not be black";
@@ -345,7 +357,10 @@ TEST(PathTraceRender, ProgressIsReportedAndCancellationStops) {
   rs.samples_per_launch = 256;
   std::vector<Progress> seen;
   PathTracer pt(dev, scene);
-  pt.render(scene.cameras[0], scene.lights, rs, [&](const Progress& p) { seen.push_back(p); return true; });
+  pt.render(scene.cameras[0], scene.lights, rs, [&](const Progress& p) {
+    seen.push_back(p);
+    return true;
+  });
   ASSERT_EQ(seen.size(), 8u);
   EXPECT_EQ(seen.back().done, 16u * 16u * 8u);
   EXPECT_EQ(seen.back().total, 16u * 16u * 8u);
@@ -507,8 +522,10 @@ TEST(PathTraceSampling, BrdfAlbedoTableIsTheSpecularLobesAlbedo) {
 TEST(PathTraceRender, SolidSphereUnderAPointLightMatchesTheAnalyticShading) {
   const Device dev = test::test_device();
   const double radius = 0.6, base = 0.7, rough = 0.5, inten = 20;
-  Json j = {{"solid", {{"source", {{"type", "sphere"}, {"resolution", 64}, {"radius", radius}}},
-                       {"base_color", base}, {"roughness", rough}}},
+  Json j = {{"solid",
+             {{"source", {{"type", "sphere"}, {"resolution", 64}, {"radius", radius}}},
+              {"base_color", base},
+              {"roughness", rough}}},
             {"lights", {{{"position", {2.0, -2.0, 3.0}}, {"intensity", inten}}}},
             {"cameras", {{{"position", {0, -4, 0}}, {"camera_angle_x", 0.18}, {"width", 8}, {"height", 8}}}}};
   const Scene scene = Scene::from_json(j);
@@ -542,7 +559,8 @@ TEST(PathTraceRender, SolidSphereUnderAPointLightMatchesTheAnalyticShading) {
           double tl = std::sqrt(t1[0] * t1[0] + t1[1] * t1[1]);
           if (tl < 1e-9) t1[0] = 1, t1[1] = 0, tl = 1;
           for (auto& v : t1) v /= tl;
-          const double t2[3] = {nrm[1] * t1[2] - nrm[2] * t1[1], nrm[2] * t1[0] - nrm[0] * t1[2], nrm[0] * t1[1] - nrm[1] * t1[0]};
+          const double t2[3] = {nrm[1] * t1[2] - nrm[2] * t1[1], nrm[2] * t1[0] - nrm[0] * t1[2],
+                                nrm[0] * t1[1] - nrm[1] * t1[0]};
           auto local = [&](const double v[3], double out[3]) {
             out[0] = v[0] * t1[0] + v[1] * t1[1] + v[2] * t1[2];
             out[1] = v[0] * t2[0] + v[1] * t2[1] + v[2] * t2[2];
@@ -561,7 +579,8 @@ TEST(PathTraceRender, SolidSphereUnderAPointLightMatchesTheAnalyticShading) {
     for (int ch = 0; ch < 4; ch += 3) {
       const double e = expected.pixels[p * 4 + ch], a = r.image.pixels[p * 4 + ch];
       const double sd = std::sqrt(r.variance.pixels[p * 4 + ch] / rs.spp);
-      EXPECT_NEAR(a, e, 5 * sd + 0.03 * e + 1e-3) << "pixel " << p << " channel " << ch << dump_images("solid", r.image, expected);
+      EXPECT_NEAR(a, e, 5 * sd + 0.03 * e + 1e-3)
+          << "pixel " << p << " channel " << ch << dump_images("solid", r.image, expected);
     }
 }
 

@@ -29,9 +29,10 @@ TEST(Program, AxpyMatchesDoubleReferenceOnRandomInputs) {
       Buffer<float> bx(d, x), by(d, y);
       d.kernel("util.cl", "axpy_f32").args(n, a, bx, by).launch(n, 64);
       const auto got = by.read();
-      const Eigen::VectorXd ref =
-          double(a) * Eigen::Map<Eigen::VectorXf>(x.data(), n).cast<double>() + Eigen::Map<Eigen::VectorXf>(y.data(), n).cast<double>();
-      for (unsigned i = 0; i < n; ++i) EXPECT_NEAR(got[i], ref[i], 1e-6 * (1 + std::abs(ref[i]))) << "n=" << n << " i=" << i;
+      const Eigen::VectorXd ref = double(a) * Eigen::Map<Eigen::VectorXf>(x.data(), n).cast<double>() +
+                                  Eigen::Map<Eigen::VectorXf>(y.data(), n).cast<double>();
+      for (unsigned i = 0; i < n; ++i)
+        EXPECT_NEAR(got[i], ref[i], 1e-6 * (1 + std::abs(ref[i]))) << "n=" << n << " i=" << i;
     }
   }
 }
@@ -68,8 +69,7 @@ TEST(Program, CacheIsKeyedBySourceAndOptions) {
 
 TEST(Program, DefinesSpecialiseTheBuild) {
   TempDir dir("defines");
-  write_file(dir.path() / "spec.cl",
-             "__kernel void k(__global int* out) { out[0] = VALUE * 2; }\n");
+  write_file(dir.path() / "spec.cl", "__kernel void k(__global int* out) { out[0] = VALUE * 2; }\n");
   ScopedEnv env("RELIT_KERNEL_DIR", dir.path().string());
   const Device d = test::test_device();
   Buffer<int> out(d, 1);

@@ -159,9 +159,9 @@ TEST(Report, ContactSheetPanelsInOrderWithGutters) {
         const int y1 = 2 * g + h + y;
         EXPECT_FLOAT_EQ(sheet.at(3 * g + 2 * w + x, y1, c), srgb_to_linear(report::error_colour(0)[c]));
       }
-    EXPECT_FLOAT_EQ(sheet.at(0, 0, c), 0.01f);                          // corner gutter
-    EXPECT_FLOAT_EQ(sheet.at(g + w, g, c), 0.01f);                      // between prediction and reference
-    EXPECT_FLOAT_EQ(sheet.at(g, g + h, c), 0.01f);                      // between the rows
+    EXPECT_FLOAT_EQ(sheet.at(0, 0, c), 0.01f);      // corner gutter
+    EXPECT_FLOAT_EQ(sheet.at(g + w, g, c), 0.01f);  // between prediction and reference
+    EXPECT_FLOAT_EQ(sheet.at(g, g + h, c), 0.01f);  // between the rows
     EXPECT_FLOAT_EQ(sheet.at(sheet.width - 1, sheet.height - 1, c), 0.01f);
   }
   // Row 0's error: |sRGB(0.2) - sRGB(0.6)| per channel, / 0.25, through the map.
@@ -191,7 +191,8 @@ TEST(Report, ContactSheetErrorScaleClampingAndMixedSizes) {
   }
   o.error_scale = 0.125f;
   const Image b = report::contact_sheet(both, o);
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(b.at(1 + 2 * (4 + 1), 1, c), srgb_to_linear(report::error_colour(1.0f)[c]), 1e-5);
+  for (int c = 0; c < 3; ++c)
+    EXPECT_NEAR(b.at(1 + 2 * (4 + 1), 1, c), srgb_to_linear(report::error_colour(1.0f)[c]), 1e-5);
 }
 
 TEST(Report, ContactSheetCapsTheRows) {

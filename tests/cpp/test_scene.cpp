@@ -158,8 +158,8 @@ TEST(Vdb, ImportsTheFogVolumeFixture) {
   const Grid g = load_vdb_density(path, "", 24, 0.9f);
   EXPECT_EQ(g.nx, 24);
   EXPECT_NEAR(g.max_value(), 1.0f, 1e-6f);
-  EXPECT_GT(g.sample(0, 0, 0), 0.9);          // the fixture is a fog sphere centred in its bounding box
-  EXPECT_EQ(g.at(0, 0, 0), 0.0f);              // corners are empty
+  EXPECT_GT(g.sample(0, 0, 0), 0.9);  // the fixture is a fog sphere centred in its bounding box
+  EXPECT_EQ(g.at(0, 0, 0), 0.0f);     // corners are empty
   EXPECT_THROW(load_vdb_density(path, "no_such_grid", 16), IOError);
   Json j = Scene::builtin_json("cloud", 0, 16);
   j["medium"]["source"] = {{"type", "vdb"}, {"file", "sphere_fog.vdb"}, {"resolution", 16}};

@@ -65,9 +65,26 @@ Setup run(const Device& d, const std::vector<float>& grid, int n, std::uint32_t 
     const V3 o = 4 * V3(u(rng), u(rng), u(rng)).normalized();
     const V3 dir = (V3(0.3 * u(rng), 0.3 * u(rng), 0.3 * u(rng)) - o).normalized();
     const V3 light = (3 + u(rng)) * V3(u(rng), u(rng), u(rng)).normalized();
-    const float rec[kRayFloats] = {float(o.x()), float(o.y()), float(o.z()), 0, float(dir.x()), float(dir.y()),
-                                   float(dir.z()), 0, float(light.x()), float(light.y()), float(light.z()), 0,
-                                   1, 1, 1, 0, 0, 0, 0, 0};
+    const float rec[kRayFloats] = {float(o.x()),
+                                   float(o.y()),
+                                   float(o.z()),
+                                   0,
+                                   float(dir.x()),
+                                   float(dir.y()),
+                                   float(dir.z()),
+                                   0,
+                                   float(light.x()),
+                                   float(light.y()),
+                                   float(light.z()),
+                                   0,
+                                   1,
+                                   1,
+                                   1,
+                                   0,
+                                   0,
+                                   0,
+                                   0,
+                                   0};
     rays.insert(rays.end(), rec, rec + kRayFloats);
   }
   render::VolumeRenderer renderer(d, {n_samples, -1, 1});
@@ -197,9 +214,12 @@ TEST(Visibility, BadShapesAreErrors) {
   const Device d = test::test_device();
   Buffer<float> rays(d, kRayFloats);
   BatchMatrix pos(d, 16, 3), vis(d, 16, 1);
-  EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{2, 2, 2}, Buffer<float>(d, 7)}, 8, vis), InvalidArgument);
-  EXPECT_THROW(render::march_visibility(d, rays, 2, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 8, vis), InvalidArgument);
-  EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 0, vis), InvalidArgument);
+  EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{2, 2, 2}, Buffer<float>(d, 7)}, 8, vis),
+               InvalidArgument);
+  EXPECT_THROW(render::march_visibility(d, rays, 2, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 8, vis),
+               InvalidArgument);
+  EXPECT_THROW(render::march_visibility(d, rays, 1, 16, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 0, vis),
+               InvalidArgument);
   // A tile of 16 samples belongs to one ray.
   Buffer<float> two_rays(d, 2 * kRayFloats);
   EXPECT_THROW(render::march_visibility(d, two_rays, 2, 8, pos, {{1, 1, 1}, Buffer<float>(d, 1)}, 8, vis),

@@ -197,8 +197,9 @@ TEST(VolumeRenderer, MissingRayShowsTheBackgroundAndJitterStaysInStrata) {
   const Device dev = test::test_device();
   VolumeRenderer renderer(dev, {16, -1, 4});
   // Ray 0 misses the box; ray 1 crosses it along the diagonal.
-  std::vector<float> rays = {5, 5, 5, 0, 0, 0, 1, 0, 0, 0, 9, 0, 1, 1, 1, 0, 0.25f, 0.5f, 0.75f, 0,
-                             -3, -3, -3, 0, 0.57735027f, 0.57735027f, 0.57735027f, 0, 0, 0, 9, 0, 1, 1, 1, 0, 0, 0, 0, 0};
+  std::vector<float> rays = {5,     5,    5,     0, 0,  0,  1,  0, 0,           0,           9,           0, 1, 1, 1, 0,
+                             0.25f, 0.5f, 0.75f, 0, -3, -3, -3, 0, 0.57735027f, 0.57735027f, 0.57735027f, 0, 0, 0, 9, 0,
+                             1,     1,    1,     0, 0,  0,  0,  0};
   Buffer<float> r(dev, rays), t(dev, 32), delta(dev, 32);
   BatchMatrix pos(dev, 32, 3);
   renderer.sample(r, 2, true, 99, t, delta, pos);
@@ -324,8 +325,8 @@ namespace {
 // The backward pass under an environment against finite differences (scene, environment and weights drawn
 // from the seeds), and gradient isolation on every sample, not only the checked ones: all visibility columns
 // are exactly zero, although the colour depends on them.
-void expect_environment_backward(bool brdf, std::uint32_t scene_seed, std::uint32_t env_seed,
-                                 std::uint32_t draw_seed, std::uint32_t draw_iteration, std::uint32_t weight_seed) {
+void expect_environment_backward(bool brdf, std::uint32_t scene_seed, std::uint32_t env_seed, std::uint32_t draw_seed,
+                                 std::uint32_t draw_iteration, std::uint32_t weight_seed) {
   const Device dev = test::test_device();
   const int lmax = 1;
   RayScene s = random_scene(3, 16, lmax, 8, scene_seed, 8, brdf);
@@ -363,7 +364,7 @@ TEST(VolumeRendererEnvironment, UniformEnvironmentGivesItsRadianceForAnyG) {
   std::vector<float> pv(n * renderer.prop_cols(), 1.0f);  // sigma, albedo, V_env = 1
   for (std::uint32_t i = 0; i < n; ++i) {
     pv[i * renderer.prop_cols() + render::kG] = -0.8f + 1.6f * i / (n - 1);  // g from -0.8 to 0.8
-    pv[i * renderer.prop_cols() + render::kVisibility] = 0.0f;              // no point light
+    pv[i * renderer.prop_cols() + render::kVisibility] = 0.0f;               // no point light
   }
   props.upload_row_major(pv);
   renderer.sample(rays, 1, false, 0, t, delta, pos);
@@ -549,7 +550,8 @@ TEST(VolumeRendererBrdf, RadianceMatchesThePathTracersBrdf) {
   for (std::uint32_t i = 0; i < n; ++i)
     for (int ch = 0; ch < 3; ++ch) {
       const double expected = f_cos[i].s[ch] * light[i][ch];
-      EXPECT_NEAR(radiance[3 * i + ch], expected, 1e-4 * std::abs(expected) + 1e-6) << "sample " << i << " channel " << ch;
+      EXPECT_NEAR(radiance[3 * i + ch], expected, 1e-4 * std::abs(expected) + 1e-6)
+          << "sample " << i << " channel " << ch;
       lit += ch == 0 && expected > 1e-3;
     }
   EXPECT_GT(lit, int(n / 3)) << "many samples must face both the camera and the light";

@@ -92,7 +92,8 @@ inline double tabulated_average(double r) {
 inline double brdf_diffuse(const Dir3& n, const Dir3& wo, const Dir3& wi, double r) {
   const double nl = dot3(n, wi), nv = dot3(n, wo);
   if (nl <= 0 || nv <= 0) return 0;
-  return (1 - tabulated_albedo(nv, r)) * (1 - tabulated_albedo(nl, r)) / (brdf_detail::kPi * (1 - tabulated_average(r)));
+  return (1 - tabulated_albedo(nv, r)) * (1 - tabulated_albedo(nl, r)) /
+         (brdf_detail::kPi * (1 - tabulated_average(r)));
 }
 
 // f(wo, wi) for one colour channel of albedo `a`; n must be a unit vector.

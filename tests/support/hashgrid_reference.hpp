@@ -25,7 +25,8 @@ struct Corner {
 // The 2^d corners of sample `x` at `level`. With float_positions, the cell and in-cell position are computed
 // in float exactly as the kernel does (so indices agree bit for bit); otherwise in double (smooth in x, for
 // finite differences).
-inline std::vector<Corner> corners(const HashGridEncoding& enc, std::uint32_t level, const double* x, bool float_positions) {
+inline std::vector<Corner> corners(const HashGridEncoding& enc, std::uint32_t level, const double* x,
+                                   bool float_positions) {
   const auto& L = enc.levels()[level];
   const std::uint32_t dims = enc.n_input_dims();
   std::array<std::uint32_t, 3> cell{};
@@ -49,8 +50,10 @@ inline std::vector<Corner> corners(const HashGridEncoding& enc, std::uint32_t le
     Corner k{0, 1.0, {0, 0, 0}};
     for (std::uint32_t d = 0; d < dims; ++d) {
       const std::uint32_t v = cell[d] + ((c >> d) & 1);
-      if (L.hashed) index ^= v * HashGridEncoding::kPrimes[d];
-      else index += v * stride;
+      if (L.hashed)
+        index ^= v * HashGridEncoding::kPrimes[d];
+      else
+        index += v * stride;
       stride *= L.res;
       k.weight *= ((c >> d) & 1) ? frac[d] : 1.0 - frac[d];
     }
@@ -68,7 +71,7 @@ inline std::vector<Corner> corners(const HashGridEncoding& enc, std::uint32_t le
 }
 
 inline RowMat reference_forward(const HashGridEncoding& enc, const std::vector<float>& params, const RowMat& x,
-                         bool float_positions = true) {
+                                bool float_positions = true) {
   const std::uint32_t F = enc.options().n_features_per_level;
   RowMat out = RowMat::Zero(x.rows(), enc.n_output_dims());
   for (Eigen::Index s = 0; s < x.rows(); ++s)
@@ -85,7 +88,8 @@ inline std::vector<double> reference_param_gradient(const HashGridEncoding& enc,
   for (Eigen::Index s = 0; s < x.rows(); ++s)
     for (std::uint32_t l = 0; l < enc.levels().size(); ++l)
       for (const Corner& c : corners(enc, l, x.row(s).data(), true))
-        for (std::uint32_t f = 0; f < F; ++f) g[enc.levels()[l].offset + c.index * F + f] += c.weight * d_out(s, l * F + f);
+        for (std::uint32_t f = 0; f < F; ++f)
+          g[enc.levels()[l].offset + c.index * F + f] += c.weight * d_out(s, l * F + f);
   return g;
 }
 

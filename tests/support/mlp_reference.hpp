@@ -49,8 +49,8 @@ class MlpReference {
         m_h.push_back(h);
       } else {
         for (Eigen::Index j = 0; j < z.cols(); ++j)
-          z.col(j) = z.col(j).unaryExpr(
-              [&](double v) { return nn::apply_activation(m_net.output_activations()[j], v); });
+          z.col(j) =
+              z.col(j).unaryExpr([&](double v) { return nn::apply_activation(m_net.output_activations()[j], v); });
         m_y = z;
       }
     }
@@ -64,8 +64,7 @@ class MlpReference {
     dx = Mat::Zero(x.rows(), x.cols());
     Mat dz = dy;
     for (Eigen::Index j = 0; j < dz.cols(); ++j)
-      for (Eigen::Index s = 0; s < dz.rows(); ++s)
-        dz(s, j) *= act_grad(m_net.output_activations()[j], m_y(s, j));
+      for (Eigen::Index s = 0; s < dz.rows(); ++s) dz(s, j) *= act_grad(m_net.output_activations()[j], m_y(s, j));
     for (std::uint32_t l = L + 1; l-- > 0;) {
       const Mat dw = dz.transpose() * m_in[l];
       const Eigen::VectorXd db = dz.colwise().sum().transpose();
@@ -82,7 +81,8 @@ class MlpReference {
         if (m_net.has_skip(l)) dx += din.rightCols(x.cols());
         dz = din.leftCols(w);
         for (Eigen::Index k = 0; k < dz.cols(); ++k)
-          for (Eigen::Index s = 0; s < dz.rows(); ++s) dz(s, k) *= act_grad(m_net.hidden_activation(), m_h[l - 1](s, k));
+          for (Eigen::Index s = 0; s < dz.rows(); ++s)
+            dz(s, k) *= act_grad(m_net.hidden_activation(), m_h[l - 1](s, k));
       }
     }
   }

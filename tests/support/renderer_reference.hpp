@@ -29,7 +29,7 @@ inline double hg(double g, double mu) { return (1 - g * g) / (4 * kPi * std::pow
 
 struct RayScene {
   std::uint32_t n_rays, n_samples, n_sh, n_dirs, n_env = 0;
-  std::vector<float> rays;   // kRayFloats per ray
+  std::vector<float> rays;    // kRayFloats per ray
   std::vector<double> props;  // row-major, n_rays * n_samples x (6 + 3 n_sh + n_env)
   std::vector<float> dirs, basis;
   std::vector<float> env_dirs, env_weights;  // n_env x 3 each, row-major
@@ -41,11 +41,12 @@ struct RayScene {
 
 // With `brdf`, column 4 is a roughness in [0.1, 0.95] and each sample ends in a raw normal of length 0.3 to
 // 2, mostly facing the camera (some face away and scatter nothing).
-inline RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int lmax, std::uint32_t n_dirs, unsigned seed,
-                      std::uint32_t n_env = 0, bool brdf = false) {
+inline RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int lmax, std::uint32_t n_dirs,
+                             unsigned seed, std::uint32_t n_env = 0, bool brdf = false) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0, 1);
-  RayScene s{n_rays, n_samples, lmax < 0 ? 0u : std::uint32_t((lmax + 1) * (lmax + 1)), n_dirs, n_env, {}, {}, {}, {}, {}, {}};
+  RayScene s{n_rays, n_samples, lmax < 0 ? 0u : std::uint32_t((lmax + 1) * (lmax + 1)), n_dirs, n_env, {}, {}, {}, {},
+             {},     {}};
   s.brdf = brdf;
   auto unit = [&] {
     Vec3 v(u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1);
@@ -57,19 +58,35 @@ inline RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int 
     const Vec3 target(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
     const Vec3 d = (target - o).normalized();
     const Vec3 lp = (3 + 2 * u(rng)) * unit();
-    const float rec[kRayFloats] = {float(o.x()), float(o.y()), float(o.z()), 0, float(d.x()), float(d.y()), float(d.z()), 0,
-                                   float(lp.x()), float(lp.y()), float(lp.z()), 0, float(300 + 600 * u(rng)),
-                                   float(300 + 600 * u(rng)), float(300 + 600 * u(rng)), 0, float(u(rng)),
-                                   float(u(rng)), float(u(rng)), 0};
+    const float rec[kRayFloats] = {float(o.x()),
+                                   float(o.y()),
+                                   float(o.z()),
+                                   0,
+                                   float(d.x()),
+                                   float(d.y()),
+                                   float(d.z()),
+                                   0,
+                                   float(lp.x()),
+                                   float(lp.y()),
+                                   float(lp.z()),
+                                   0,
+                                   float(300 + 600 * u(rng)),
+                                   float(300 + 600 * u(rng)),
+                                   float(300 + 600 * u(rng)),
+                                   0,
+                                   float(u(rng)),
+                                   float(u(rng)),
+                                   float(u(rng)),
+                                   0};
     s.rays.insert(s.rays.end(), rec, rec + kRayFloats);
   }
   for (std::uint32_t i = 0; i < n_rays * n_samples; ++i) {
-    s.props.push_back(3 * u(rng));                                      // sigma
-    for (int c = 0; c < 3; ++c) s.props.push_back(u(rng));              // albedo
-    s.props.push_back(brdf ? 0.1 + 0.85 * u(rng) : 1.8 * u(rng) - 0.9);  // roughness or g
-    s.props.push_back(u(rng));                                          // visibility
+    s.props.push_back(3 * u(rng));                                                       // sigma
+    for (int c = 0; c < 3; ++c) s.props.push_back(u(rng));                               // albedo
+    s.props.push_back(brdf ? 0.1 + 0.85 * u(rng) : 1.8 * u(rng) - 0.9);                  // roughness or g
+    s.props.push_back(u(rng));                                                           // visibility
     for (std::uint32_t j = 0; j < 3 * s.n_sh; ++j) s.props.push_back(2 * u(rng) - 0.7);  // SH, both signs
-    for (std::uint32_t j = 0; j < n_env; ++j) s.props.push_back(u(rng));                   // environment visibility
+    for (std::uint32_t j = 0; j < n_env; ++j) s.props.push_back(u(rng));                 // environment visibility
     if (brdf) {
       const float* ray = &s.rays[(i / n_samples) * kRayFloats];
       const Vec3 wo = -Vec3(ray[4], ray[5], ray[6]);
@@ -114,7 +131,8 @@ inline Vec3 brdf_radiance(const RayScene& s, const double* p, const Vec3& wo, co
 }
 
 // Double-precision reference of sample placement + radiance + compositing (stratum centres).
-inline std::vector<double> reference_color(const RayScene& s, const std::vector<double>& props, bool closed_form = false) {
+inline std::vector<double> reference_color(const RayScene& s, const std::vector<double>& props,
+                                           bool closed_form = false) {
   std::vector<double> color;
   const std::uint32_t cols = s.cols();
   for (std::uint32_t r = 0; r < s.n_rays; ++r) {

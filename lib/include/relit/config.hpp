@@ -30,9 +30,9 @@ namespace config {
 /// One parameter as a component reads it: the source of the generated config reference.
 struct ParamDoc {
   std::string key;
-  std::string type;         ///< "uint", "float", "bool", "string", "array", "object", "component"
-  Json default_value;       ///< null when required
-  std::string valid;        ///< "16, 32, 64", "[0, 1]", ... ("" when anything of the type goes)
+  std::string type;    ///< "uint", "float", "bool", "string", "array", "object", "component"
+  Json default_value;  ///< null when required
+  std::string valid;   ///< "16, 32, 64", "[0, 1]", ... ("" when anything of the type goes)
   std::string description;
 };
 
@@ -113,7 +113,8 @@ class Registry {
 
   /// Builds the component described by `json` (found at `pointer`); "type" selects the factory. The
   /// resolved hyperparameters (with "type") are returned through `resolved` when it is non-null.
-  std::unique_ptr<Base> create(const Json& json, const std::string& pointer, Args... args, Json* resolved = nullptr) const {
+  std::unique_ptr<Base> create(const Json& json, const std::string& pointer, Args... args,
+                               Json* resolved = nullptr) const {
     if (!json.is_object()) throw ConfigError(pointer, m_family + " config must be a JSON object, got " + json.dump());
     const std::string type = component_type(json, pointer, m_default);
     const Entry& e = entry(type, pointer);

@@ -31,21 +31,21 @@ namespace relit {
 struct DatasetSettings {
   std::string lighting = "point";  ///< "point" or "env+point"
   std::uint32_t seed = 0;
-  int resolution = 128;            ///< square images
+  int resolution = 128;  ///< square images
   std::uint32_t train = 100, val = 20, test = 50;
   std::uint32_t spp = 64;
-  std::uint32_t test_spp = 0;      ///< samples per pixel of the test and test_* splits (0: spp); cleaner references
-  std::uint32_t max_bounces = 0;   ///< 0 = unlimited
-  float camera_distance = 4.0f;    ///< the scene box [-1, 1]^3 nearly fills the view at the default field of view
+  std::uint32_t test_spp = 0;     ///< samples per pixel of the test and test_* splits (0: spp); cleaner references
+  std::uint32_t max_bounces = 0;  ///< 0 = unlimited
+  float camera_distance = 4.0f;   ///< the scene box [-1, 1]^3 nearly fills the view at the default field of view
   float camera_angle_x = 0.8f;
   float light_distance_min = 3.0f, light_distance_max = 5.0f;
   float intensity_min = 600.0f, intensity_max = 600.0f;  ///< W/sr (white); equal = fixed
-  bool generalization = false;     ///< also write the light-distance and light-intensity test sets
+  bool generalization = false;  ///< also write the light-distance and light-intensity test sets
   std::uint32_t generalization_views = 20;
-  float env_scale = 1.0f;          ///< 'env+point' without an environment in the scene: procedural sky scale
-  bool env_visible = false;        ///< whether camera rays that miss see the environment
-  bool previews = true;            ///< write PNG previews
-  bool overwrite = false;          ///< replace an existing output folder (only once the new one is complete)
+  float env_scale = 1.0f;    ///< 'env+point' without an environment in the scene: procedural sky scale
+  bool env_visible = false;  ///< whether camera rays that miss see the environment
+  bool previews = true;      ///< write PNG previews
+  bool overwrite = false;    ///< replace an existing output folder (only once the new one is complete)
 
   void validate() const;
 };
@@ -69,8 +69,8 @@ DatasetDescription plan_dataset(const DatasetSettings& settings);
 /// Renders and writes the dataset to `out_dir`. Progress counts path samples over all views.
 /// Throws IOError when `out_dir` exists (and overwrite is off) or cannot be written; Cancelled when the
 /// callback cancels (nothing is left behind).
-void generate_dataset(const Device& device, const Scene& scene, const std::string& out_dir, const DatasetSettings& settings,
-                      const ProgressCallback& progress = {});
+void generate_dataset(const Device& device, const Scene& scene, const std::string& out_dir,
+                      const DatasetSettings& settings, const ProgressCallback& progress = {});
 
 /// The path tracer seed of view `index` of `split`: any view can be re-rendered exactly.
 std::uint32_t dataset_view_seed(std::uint32_t seed, const std::string& split, std::size_t index);

@@ -57,8 +57,8 @@ class ClError : public DeviceError {
 
 class BuildError : public DeviceError {
  public:
-  BuildError(const std::string& program, const std::string& device, const std::string& options,
-             const std::string& log, const std::string& source_path);
+  BuildError(const std::string& program, const std::string& device, const std::string& options, const std::string& log,
+             const std::string& source_path);
   const std::string& program() const { return m_program; }
   const std::string& device() const { return m_device; }
   const std::string& options() const { return m_options; }
@@ -81,15 +81,13 @@ namespace detail {
 
 /// Checks the cl_int status of an OpenCL call and throws relit::ClError naming the call on failure:
 ///   RELIT_CL_CHECK(clFinish(queue));     or    RELIT_CL_CHECK_CODE(err, "clCreateBuffer");
-#define RELIT_CL_CHECK(call)                                                          \
-  do {                                                                                \
-    const int relit_cl_status_ = static_cast<int>(call);                              \
-    if (relit_cl_status_ != 0)                                                        \
-      ::relit::detail::throw_cl_error(relit_cl_status_, #call, __FILE__, __LINE__);   \
+#define RELIT_CL_CHECK(call)                                                                                 \
+  do {                                                                                                       \
+    const int relit_cl_status_ = static_cast<int>(call);                                                     \
+    if (relit_cl_status_ != 0) ::relit::detail::throw_cl_error(relit_cl_status_, #call, __FILE__, __LINE__); \
   } while (0)
-#define RELIT_CL_CHECK_CODE(status, name)                                             \
-  do {                                                                                \
-    const int relit_cl_status_ = static_cast<int>(status);                            \
-    if (relit_cl_status_ != 0)                                                        \
-      ::relit::detail::throw_cl_error(relit_cl_status_, name, __FILE__, __LINE__);    \
+#define RELIT_CL_CHECK_CODE(status, name)                                                                   \
+  do {                                                                                                      \
+    const int relit_cl_status_ = static_cast<int>(status);                                                  \
+    if (relit_cl_status_ != 0) ::relit::detail::throw_cl_error(relit_cl_status_, name, __FILE__, __LINE__); \
   } while (0)

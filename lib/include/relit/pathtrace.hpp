@@ -24,10 +24,10 @@
 namespace relit {
 
 struct RenderSettings {
-  std::uint32_t spp = 64;          ///< samples per pixel, >= 1
-  std::uint32_t seed = 0;          ///< random seed
-  std::uint32_t max_bounces = 0;   ///< scattering events gathered per path; 0 = unlimited (1 = single scattering)
-  std::uint32_t rr_depth = 3;      ///< Russian roulette from this vertex on
+  std::uint32_t spp = 64;         ///< samples per pixel, >= 1
+  std::uint32_t seed = 0;         ///< random seed
+  std::uint32_t max_bounces = 0;  ///< scattering events gathered per path; 0 = unlimited (1 = single scattering)
+  std::uint32_t rr_depth = 3;     ///< Russian roulette from this vertex on
   std::uint32_t samples_per_launch = 1u << 18;  ///< work per kernel launch: keeps launches short, progress flowing
 
   void validate() const;
@@ -57,8 +57,8 @@ class PathTracer {
 };
 
 /// One-call form: renders the scene's camera `camera_index` under the scene's own lights.
-Image render_reference(const Device& device, const Scene& scene, std::size_t camera_index, const RenderSettings& settings,
-                       const ProgressCallback& progress = {});
+Image render_reference(const Device& device, const Scene& scene, std::size_t camera_index,
+                       const RenderSettings& settings, const ProgressCallback& progress = {});
 
 /// Throughput of the path tracer on the default cloud scene (built-in "cloud", 64^3 grid, one point light at
 /// distance 4, unlimited bounces), measured after a correctness check. For `relit bench` and bench_pathtrace.
@@ -66,10 +66,10 @@ struct PathTraceBenchmark {
   std::string scene;
   int resolution = 0;
   std::uint32_t spp = 0, reps = 0;
-  double warmup_seconds = 0;    ///< first render (kernel build and first launch)
-  double median_seconds = 0;    ///< median over `reps` renders
+  double warmup_seconds = 0;  ///< first render (kernel build and first launch)
+  double median_seconds = 0;  ///< median over `reps` renders
   double samples_per_second = 0;
-  double furnace_sigma = 0;     ///< white-furnace check: |mean - L| in standard errors (must be < 5)
+  double furnace_sigma = 0;  ///< white-furnace check: |mean - L| in standard errors (must be < 5)
 };
 
 /// Verifies (white furnace: throws DeviceError when the device renders it wrong), then times `reps` renders

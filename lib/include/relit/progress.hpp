@@ -51,9 +51,11 @@ class ProgressTracker {
     m_progress.message = message;
     m_progress.elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
     m_progress.rate = m_progress.elapsed > 0 ? double(done) / m_progress.elapsed : 0.0;
-    m_progress.eta = (m_progress.rate > 0 && m_progress.total >= done) ? double(m_progress.total - done) / m_progress.rate : 0.0;
-    if (m_callback && !m_callback(m_progress)) throw Cancelled("cancelled by the progress callback at " + std::to_string(done) +
-                                                               " of " + std::to_string(m_progress.total) + " " + m_progress.unit);
+    m_progress.eta =
+        (m_progress.rate > 0 && m_progress.total >= done) ? double(m_progress.total - done) / m_progress.rate : 0.0;
+    if (m_callback && !m_callback(m_progress))
+      throw Cancelled("cancelled by the progress callback at " + std::to_string(done) + " of " +
+                      std::to_string(m_progress.total) + " " + m_progress.unit);
   }
   const Progress& progress() const { return m_progress; }
 

@@ -85,30 +85,40 @@ std::vector<Enumerated> enumerate() {
       info.device_index = static_cast<int>(d);
       info.platform_name = platform_string(platforms[p], CL_PLATFORM_NAME, "clGetPlatformInfo(CL_PLATFORM_NAME)");
       info.platform_vendor = platform_string(platforms[p], CL_PLATFORM_VENDOR, "clGetPlatformInfo(CL_PLATFORM_VENDOR)");
-      info.platform_version = platform_string(platforms[p], CL_PLATFORM_VERSION, "clGetPlatformInfo(CL_PLATFORM_VERSION)");
+      info.platform_version =
+          platform_string(platforms[p], CL_PLATFORM_VERSION, "clGetPlatformInfo(CL_PLATFORM_VERSION)");
       info.name = device_string(dev, CL_DEVICE_NAME, "clGetDeviceInfo(CL_DEVICE_NAME)");
       info.vendor = device_string(dev, CL_DEVICE_VENDOR, "clGetDeviceInfo(CL_DEVICE_VENDOR)");
       info.version = device_string(dev, CL_DEVICE_VERSION, "clGetDeviceInfo(CL_DEVICE_VERSION)");
       info.driver_version = device_string(dev, CL_DRIVER_VERSION, "clGetDeviceInfo(CL_DRIVER_VERSION)");
-      info.opencl_c_version = device_string(dev, CL_DEVICE_OPENCL_C_VERSION, "clGetDeviceInfo(CL_DEVICE_OPENCL_C_VERSION)");
+      info.opencl_c_version =
+          device_string(dev, CL_DEVICE_OPENCL_C_VERSION, "clGetDeviceInfo(CL_DEVICE_OPENCL_C_VERSION)");
       const auto type = device_query<CL_DEVICE_TYPE, cl_device_type>(dev, "clGetDeviceInfo(CL_DEVICE_TYPE)");
-      info.type = (type & CL_DEVICE_TYPE_GPU) ? "gpu" : (type & CL_DEVICE_TYPE_CPU) ? "cpu"
-                  : (type & CL_DEVICE_TYPE_ACCELERATOR) ? "accelerator" : "other";
-      info.compute_units = device_query<CL_DEVICE_MAX_COMPUTE_UNITS, cl_uint>(dev, "clGetDeviceInfo(CL_DEVICE_MAX_COMPUTE_UNITS)");
-      info.max_clock_mhz = device_query<CL_DEVICE_MAX_CLOCK_FREQUENCY, cl_uint>(dev, "clGetDeviceInfo(CL_DEVICE_MAX_CLOCK_FREQUENCY)");
-      info.global_memory = device_query<CL_DEVICE_GLOBAL_MEM_SIZE, cl_ulong>(dev, "clGetDeviceInfo(CL_DEVICE_GLOBAL_MEM_SIZE)");
-      info.max_allocation = device_query<CL_DEVICE_MAX_MEM_ALLOC_SIZE, cl_ulong>(dev, "clGetDeviceInfo(CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
-      info.local_memory = device_query<CL_DEVICE_LOCAL_MEM_SIZE, cl_ulong>(dev, "clGetDeviceInfo(CL_DEVICE_LOCAL_MEM_SIZE)");
-      info.local_memory_is_global =
-          device_query<CL_DEVICE_LOCAL_MEM_TYPE, cl_device_local_mem_type>(dev, "clGetDeviceInfo(CL_DEVICE_LOCAL_MEM_TYPE)") == CL_GLOBAL;
-      info.max_work_group_size = device_query<CL_DEVICE_MAX_WORK_GROUP_SIZE, size_t>(dev, "clGetDeviceInfo(CL_DEVICE_MAX_WORK_GROUP_SIZE)");
-      info.preferred_vector_width_float =
-          device_query<CL_DEVICE_PREFERRED_VECTOR_WIDTH_FLOAT, cl_uint>(dev, "clGetDeviceInfo(CL_DEVICE_PREFERRED_VECTOR_WIDTH_FLOAT)");
+      info.type = (type & CL_DEVICE_TYPE_GPU)           ? "gpu"
+                  : (type & CL_DEVICE_TYPE_CPU)         ? "cpu"
+                  : (type & CL_DEVICE_TYPE_ACCELERATOR) ? "accelerator"
+                                                        : "other";
+      info.compute_units =
+          device_query<CL_DEVICE_MAX_COMPUTE_UNITS, cl_uint>(dev, "clGetDeviceInfo(CL_DEVICE_MAX_COMPUTE_UNITS)");
+      info.max_clock_mhz =
+          device_query<CL_DEVICE_MAX_CLOCK_FREQUENCY, cl_uint>(dev, "clGetDeviceInfo(CL_DEVICE_MAX_CLOCK_FREQUENCY)");
+      info.global_memory =
+          device_query<CL_DEVICE_GLOBAL_MEM_SIZE, cl_ulong>(dev, "clGetDeviceInfo(CL_DEVICE_GLOBAL_MEM_SIZE)");
+      info.max_allocation =
+          device_query<CL_DEVICE_MAX_MEM_ALLOC_SIZE, cl_ulong>(dev, "clGetDeviceInfo(CL_DEVICE_MAX_MEM_ALLOC_SIZE)");
+      info.local_memory =
+          device_query<CL_DEVICE_LOCAL_MEM_SIZE, cl_ulong>(dev, "clGetDeviceInfo(CL_DEVICE_LOCAL_MEM_SIZE)");
+      info.local_memory_is_global = device_query<CL_DEVICE_LOCAL_MEM_TYPE, cl_device_local_mem_type>(
+                                        dev, "clGetDeviceInfo(CL_DEVICE_LOCAL_MEM_TYPE)") == CL_GLOBAL;
+      info.max_work_group_size =
+          device_query<CL_DEVICE_MAX_WORK_GROUP_SIZE, size_t>(dev, "clGetDeviceInfo(CL_DEVICE_MAX_WORK_GROUP_SIZE)");
+      info.preferred_vector_width_float = device_query<CL_DEVICE_PREFERRED_VECTOR_WIDTH_FLOAT, cl_uint>(
+          dev, "clGetDeviceInfo(CL_DEVICE_PREFERRED_VECTOR_WIDTH_FLOAT)");
       std::istringstream ext(device_string(dev, CL_DEVICE_EXTENSIONS, "clGetDeviceInfo(CL_DEVICE_EXTENSIONS)"));
       for (std::string e; ext >> e;) info.extensions.push_back(e);
       std::sort(info.extensions.begin(), info.extensions.end());
-      info.fp64 = info.has_extension("cl_khr_fp64") ||
-                  device_query<CL_DEVICE_DOUBLE_FP_CONFIG, cl_device_fp_config>(dev, "clGetDeviceInfo(CL_DEVICE_DOUBLE_FP_CONFIG)") != 0;
+      info.fp64 = info.has_extension("cl_khr_fp64") || device_query<CL_DEVICE_DOUBLE_FP_CONFIG, cl_device_fp_config>(
+                                                           dev, "clGetDeviceInfo(CL_DEVICE_DOUBLE_FP_CONFIG)") != 0;
       out.push_back({std::move(info), dev});
     }
   }
@@ -152,8 +162,10 @@ std::string no_match_message(const std::string& selector, const std::string& sou
                              const std::vector<Enumerated>& all) {
   const std::string what =
       source == "RELIT_DEVICE" ? "RELIT_DEVICE='" + selector + "'" : "device selector '" + selector + "'";
-  return what + " matches no OpenCL device. Use an index, 'platform:device' (indices or name parts), or a part of "
-                "a platform or device name (case-insensitive). Devices:" + available_list(all);
+  return what +
+         " matches no OpenCL device. Use an index, 'platform:device' (indices or name parts), or a part of "
+         "a platform or device name (case-insensitive). Devices:" +
+         available_list(all);
 }
 
 // Handles on one cl_device_id share one state, so buffers and cached programs are shared in a process.

@@ -15,7 +15,7 @@ struct DeviceState {
   cl::Device device;
   cl::Context context;
   cl::CommandQueue queue;
-  std::mutex mutex;  // guards programs
+  std::mutex mutex;                                                       // guards programs
   std::map<std::pair<std::uint64_t, std::string>, cl::Program> programs;  // (source hash, options) → program
 };
 

@@ -56,7 +56,8 @@ Program Device::program(const std::string& file, const Defines& defines, const s
   cl::Program program(s.context, source, false, &status);
   RELIT_CL_CHECK_CODE(status, "clCreateProgramWithSource");
   status = program.build(std::vector<cl::Device>{s.device}, options.c_str());
-  if (status == CL_BUILD_PROGRAM_FAILURE || status == CL_INVALID_BUILD_OPTIONS || status == CL_COMPILE_PROGRAM_FAILURE) {
+  if (status == CL_BUILD_PROGRAM_FAILURE || status == CL_INVALID_BUILD_OPTIONS ||
+      status == CL_COMPILE_PROGRAM_FAILURE) {
     std::string log;
     program.getBuildInfo(s.device, CL_PROGRAM_BUILD_LOG, &log);
     if (status == CL_INVALID_BUILD_OPTIONS) log = "invalid build options\n" + log;

@@ -34,9 +34,12 @@ std::string join(const std::vector<T>& items) {
 std::string escape_pointer_token(const std::string& key) {
   std::string out;
   for (char c : key) {
-    if (c == '~') out += "~0";
-    else if (c == '/') out += "~1";
-    else out += c;
+    if (c == '~')
+      out += "~0";
+    else if (c == '/')
+      out += "~1";
+    else
+      out += c;
   }
   return out;
 }
@@ -78,7 +81,8 @@ std::uint32_t Reader::uint(const std::string& key, std::uint32_t def, std::uint3
   if (const Json* j = find(key)) {
     const bool integral = j->is_number_integer() || j->is_number_unsigned() ||
                           (j->is_number_float() && std::floor(j->get<double>()) == j->get<double>());
-    if (!integral) fail(key, "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + j->dump());
+    if (!integral)
+      fail(key, "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + j->dump());
     const double v = j->get<double>();
     if (v < lo || v > hi)
       fail(key, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + j->dump());
@@ -118,7 +122,8 @@ std::string Reader::choice(const std::string& key, const std::string& def, const
   if (const Json* j = find(key)) {
     if (!j->is_string()) fail(key, "must be one of " + join(choices) + "; got " + j->dump());
     const std::string given = j->get<std::string>();
-    const auto it = std::find_if(choices.begin(), choices.end(), [&](const std::string& c) { return lower(c) == lower(given); });
+    const auto it =
+        std::find_if(choices.begin(), choices.end(), [&](const std::string& c) { return lower(c) == lower(given); });
     if (it == choices.end()) fail(key, "must be one of " + join(choices) + "; got \"" + given + "\"");
     value = *it;
   }
@@ -149,7 +154,8 @@ std::vector<std::uint32_t> Reader::uint_list(const std::string& key, const std::
     for (std::size_t i = 0; i < j->size(); ++i) {
       const Json& e = (*j)[i];
       if (!(e.is_number_integer() || e.is_number_unsigned()) || e.get<double>() < lo || e.get<double>() > hi)
-        throw ConfigError(pointer(key) + "/" + std::to_string(i), "must be an integer in " + range + ", got " + e.dump());
+        throw ConfigError(pointer(key) + "/" + std::to_string(i),
+                          "must be an integer in " + range + ", got " + e.dump());
       value.push_back(e.get<std::uint32_t>());
     }
   }
@@ -182,8 +188,9 @@ void Reader::finish() const {
     if (std::find(m_read.begin(), m_read.end(), it.key()) != m_read.end()) continue;
     std::vector<std::string> valid;
     for (const auto& d : m_docs) valid.push_back(d.key);
-    throw ConfigError(pointer(it.key()), "unknown key '" + it.key() + "' for " + m_component +
-                                             (valid.empty() ? " (it takes no parameters)" : "; valid keys: " + join(valid)));
+    throw ConfigError(pointer(it.key()),
+                      "unknown key '" + it.key() + "' for " + m_component +
+                          (valid.empty() ? " (it takes no parameters)" : "; valid keys: " + join(valid)));
   }
 }
 

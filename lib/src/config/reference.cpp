@@ -12,9 +12,12 @@ namespace {
 std::string cell(std::string s) {
   std::string out;
   for (char c : s) {
-    if (c == '|') out += "\\|";
-    else if (c == '\n') out += ' ';
-    else out += c;
+    if (c == '|')
+      out += "\\|";
+    else if (c == '\n')
+      out += ' ';
+    else
+      out += c;
   }
   return out;
 }
@@ -84,15 +87,16 @@ std::string config_reference_markdown() {
          "docs/method.md and docs/baselines.md. The `/model` keys depend on the method.\n\n";
   for (const auto& [pointer, docs] : method::run_config_docs()) {
     const auto mark = pointer.find(" [");  // "/model [bi]": a key of method bi's model
-    if (mark == std::string::npos) out << "### `" << (pointer.empty() ? "/" : pointer) << "`\n\n";
+    if (mark == std::string::npos)
+      out << "### `" << (pointer.empty() ? "/" : pointer) << "`\n\n";
     else
       out << "### `" << pointer.substr(0, mark) << "` (method `" << pointer.substr(mark + 2, pointer.size() - mark - 3)
           << "`)\n\n";
-    out
-        << "| key | type | default | valid values | description |\n|---|---|---|---|---|\n";
+    out << "| key | type | default | valid values | description |\n|---|---|---|---|---|\n";
     for (const auto& d : docs)
-      out << "| `" << d.key << "` | " << d.type << " | " << cell(d.type == "object" ? "(object below)" : default_text(d.default_value))
-          << " | " << cell(d.valid) << " | " << cell(d.description) << " |\n";
+      out << "| `" << d.key << "` | " << d.type << " | "
+          << cell(d.type == "object" ? "(object below)" : default_text(d.default_value)) << " | " << cell(d.valid)
+          << " | " << cell(d.description) << " |\n";
     out << '\n';
   }
   return out.str();

@@ -77,8 +77,8 @@ void DatasetSettings::validate() const {
   if (!(light_distance_min > 1.8f) || !(light_distance_max >= light_distance_min) || !std::isfinite(light_distance_max))
     throw InvalidArgument("light distances must satisfy 1.8 < min <= max (lights stay outside the scene box)");
   if (!(intensity_min >= 0) || !(intensity_max >= intensity_min) || !std::isfinite(intensity_max))
-    throw InvalidArgument("light intensities must satisfy 0 <= min <= max, got [" + std::to_string(intensity_min) + ", " +
-                          std::to_string(intensity_max) + "]");
+    throw InvalidArgument("light intensities must satisfy 0 <= min <= max, got [" + std::to_string(intensity_min) +
+                          ", " + std::to_string(intensity_max) + "]");
   if (!(env_scale >= 0) || !std::isfinite(env_scale)) throw InvalidArgument("env_scale must be finite and >= 0");
   if (generalization && generalization_views == 0) throw InvalidArgument("generalization_views must be >= 1");
 }
@@ -100,7 +100,8 @@ DatasetDescription plan_dataset(const DatasetSettings& s) {
   {
     auto rng = stream(s.seed, 1);
     const double a = u(rng) * 2 * kPi, b = std::acos(1 - 2 * u(rng)), c = u(rng) * 2 * kPi;
-    const double ca = std::cos(a), sa = std::sin(a), cb = std::cos(b), sb = std::sin(b), cc = std::cos(c), sc = std::sin(c);
+    const double ca = std::cos(a), sa = std::sin(a), cb = std::cos(b), sb = std::sin(b), cc = std::cos(c),
+                 sc = std::sin(c);
     const double R[3][3] = {{ca * cc - sa * cb * sc, -ca * sc - sa * cb * cc, sa * sb},
                             {sa * cc + ca * cb * sc, -sa * sc + ca * cb * cc, -ca * sb},
                             {sb * sc, sb * cc, cb}};
@@ -117,14 +118,15 @@ DatasetDescription plan_dataset(const DatasetSettings& s) {
       Float3 dir;
       for (int k = 0; k < 3; ++k) dir[k] = float(R[k][0] * p[0] + R[k][1] * p[1] + R[k][2] * p[2]);
       const Float3 ldir = unit_from(u(rng), u(rng));
-      const double dist = s.light_distance_min + (s.light_distance_max - s.light_distance_min) * (perm_d[i] + u(rng)) / s.train;
+      const double dist =
+          s.light_distance_min + (s.light_distance_max - s.light_distance_min) * (perm_d[i] + u(rng)) / s.train;
       frames.push_back({frame_name("train", i) + ".exr", camera_at(dir, s),
                         light_of(ldir, dist, intensity_of((perm_i[i] + u(rng)) / s.train))});
     }
   }
   // Validation and test: independent random cameras and lights.
-  for (const auto& [name, count, purpose] : {std::make_tuple(std::string("val"), s.val, 2u),
-                                             std::make_tuple(std::string("test"), s.test, 3u)}) {
+  for (const auto& [name, count, purpose] :
+       {std::make_tuple(std::string("val"), s.val, 2u), std::make_tuple(std::string("test"), s.test, 3u)}) {
     auto rng = stream(s.seed, purpose);
     auto& frames = d.splits[name];
     for (std::uint32_t i = 0; i < count; ++i) {
@@ -138,29 +140,32 @@ DatasetDescription plan_dataset(const DatasetSettings& s) {
   if (s.generalization) {
     auto rng = stream(s.seed, 4);
     std::vector<std::pair<Float3, Float3>> views;
-    for (std::uint32_t i = 0; i < s.generalization_views; ++i) views.push_back({unit_from(u(rng), u(rng)), unit_from(u(rng), u(rng))});
+    for (std::uint32_t i = 0; i < s.generalization_views; ++i)
+      views.push_back({unit_from(u(rng), u(rng)), unit_from(u(rng), u(rng))});
     for (int dist : {3, 5, 7, 10}) {
       const std::string name = "test_distance_" + std::to_string(dist);
       for (std::size_t i = 0; i < views.size(); ++i)
-        d.splits[name].push_back({frame_name(name, i) + ".exr", camera_at(views[i].first, s), light_of(views[i].second, dist, 600.0f)});
+        d.splits[name].push_back(
+            {frame_name(name, i) + ".exr", camera_at(views[i].first, s), light_of(views[i].second, dist, 600.0f)});
     }
     for (int inten : {400, 800, 1200, 1600}) {
       const std::string name = "test_intensity_" + std::to_string(inten);
       for (std::size_t i = 0; i < views.size(); ++i)
-        d.splits[name].push_back({frame_name(name, i) + ".exr", camera_at(views[i].first, s),
-                                  light_of(views[i].second, 4.0, float(inten))});
+        d.splits[name].push_back(
+            {frame_name(name, i) + ".exr", camera_at(views[i].first, s), light_of(views[i].second, 4.0, float(inten))});
     }
   }
   return d;
 }
 
-void generate_dataset(const Device& device, const Scene& input_scene, const std::string& out_dir, const DatasetSettings& s,
-                      const ProgressCallback& progress) {
+void generate_dataset(const Device& device, const Scene& input_scene, const std::string& out_dir,
+                      const DatasetSettings& s, const ProgressCallback& progress) {
   s.validate();
   const fs::path out = fs::path(out_dir).lexically_normal();
   if (out.empty()) throw InvalidArgument("the output folder is empty");
   if (fs::exists(out) && !s.overwrite)
-    throw IOError("output folder '" + out.string() + "' already exists; choose another --out or pass --overwrite "
+    throw IOError("output folder '" + out.string() +
+                  "' already exists; choose another --out or pass --overwrite "
                   "(the existing folder is left untouched)");
   const fs::path parent = out.has_parent_path() ? out.parent_path() : fs::path(".");
   if (!fs::is_directory(parent)) throw IOError("the parent folder of '" + out.string() + "' does not exist");
@@ -174,7 +179,7 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
     scene.environment.reset();  // 'point': the point light alone
     scene_json.erase("environment");
   }
-  scene_json.erase("lights");   // the per-view lights are in the transforms files
+  scene_json.erase("lights");  // the per-view lights are in the transforms files
   scene_json.erase("cameras");
 
   const DatasetDescription plan = plan_dataset(s);
@@ -192,7 +197,9 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
   try {
     if (scene.environment) {
       write_image((tmp / "environment.exr").string(), scene.environment->image());
-      env_json = {{"file", "environment.exr"}, {"scale", scene.environment->scale()}, {"visible", scene.environment->visible()}};
+      env_json = {{"file", "environment.exr"},
+                  {"scale", scene.environment->scale()},
+                  {"visible", scene.environment->visible()}};
       scene_json["environment"] = env_json;
     }
     io::write_file_atomic((tmp / "scene.json").string(), scene_json.dump(2) + "\n");
@@ -207,19 +214,27 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
       rs.spp = split_spp(name);
       const std::uint64_t view_samples = std::uint64_t(s.resolution) * s.resolution * rs.spp;
       fs::create_directories(tmp / name);
-      Json doc = {{"camera_angle_x", s.camera_angle_x}, {"w", s.resolution}, {"h", s.resolution},
-                  {"lighting", s.lighting}, {"environment", env_json}, {"scene", "scene.json"}, {"spp", rs.spp},
-                  {"seed", s.seed}, {"relit_version", relit::version()}, {"frames", Json::array()}};
+      Json doc = {{"camera_angle_x", s.camera_angle_x},
+                  {"w", s.resolution},
+                  {"h", s.resolution},
+                  {"lighting", s.lighting},
+                  {"environment", env_json},
+                  {"scene", "scene.json"},
+                  {"spp", rs.spp},
+                  {"seed", s.seed},
+                  {"relit_version", relit::version()},
+                  {"frames", Json::array()}};
       for (std::size_t i = 0; i < frames.size(); ++i) {
         const DatasetFrame& f = frames[i];
         rs.seed = dataset_view_seed(s.seed, name, i);
         const std::string stem = f.file_path.substr(0, f.file_path.size() - 4);
         const std::uint64_t base = samples_done;
         ProgressCallback per_view;  // without a callback, launches run back to back with no waiting
-        if (progress) per_view = [&](const Progress& p) {
-          tracker.update(base + p.done, stem);
-          return true;
-        };
+        if (progress)
+          per_view = [&](const Progress& p) {
+            tracker.update(base + p.done, stem);
+            return true;
+          };
         const RenderResult r = pt.render(f.camera, {f.light}, rs, per_view);
         write_image((tmp / f.file_path).string(), r.image);
         if (s.previews) {
@@ -233,9 +248,12 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
         }
         Json m = Json::array();
         for (const auto& row : f.camera.transform) m.push_back(Json::array({row[0], row[1], row[2], row[3]}));
-        Json frame = {{"file_path", f.file_path}, {"transform_matrix", m},
-                      {"light", {{"type", "point"}, {"position", vec_json(f.light.position)},
-                                 {"intensity", vec_json(f.light.intensity)}}}};
+        Json frame = {{"file_path", f.file_path},
+                      {"transform_matrix", m},
+                      {"light",
+                       {{"type", "point"},
+                        {"position", vec_json(f.light.position)},
+                        {"intensity", vec_json(f.light.intensity)}}}};
         if (s.previews) frame["preview_path"] = stem + ".png";
         doc["frames"].push_back(frame);
         samples_done += view_samples;

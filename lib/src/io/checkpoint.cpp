@@ -26,7 +26,8 @@ std::uint64_t fnv1a(const char* data, std::size_t n) {
 template <class T>
 void put(std::string& out, T v) {
   char b[sizeof(T)];
-  for (std::size_t i = 0; i < sizeof(T); ++i) b[i] = static_cast<char>((static_cast<std::uint64_t>(v) >> (8 * i)) & 0xff);
+  for (std::size_t i = 0; i < sizeof(T); ++i)
+    b[i] = static_cast<char>((static_cast<std::uint64_t>(v) >> (8 * i)) & 0xff);
   out.append(b, sizeof(T));
 }
 template <class T>

@@ -40,14 +40,16 @@ float srgb_to_linear(float x) { return x <= 0.04045f ? x / 12.92f : std::pow((x 
 Image read_image(const std::string& path) {
   if (!fs::exists(path)) throw IOError("image file '" + path + "' does not exist");
   auto in = OIIO::ImageInput::open(path);
-  if (!in) throw IOError("cannot read image '" + path + "': " + OIIO::geterror() + " (is it a valid EXR/HDR/PNG file?)");
+  if (!in)
+    throw IOError("cannot read image '" + path + "': " + OIIO::geterror() + " (is it a valid EXR/HDR/PNG file?)");
   const OIIO::ImageSpec& spec = in->spec();
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
     throw IOError("image '" + path + "' has an unsupported shape " + std::to_string(spec.width) + "x" +
                   std::to_string(spec.height) + "x" + std::to_string(spec.nchannels));
   Image image(spec.width, spec.height, spec.nchannels);
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
-    throw IOError("cannot read the pixels of image '" + path + "': " + in->geterror() + " (truncated or corrupt file?)");
+    throw IOError("cannot read the pixels of image '" + path + "': " + in->geterror() +
+                  " (truncated or corrupt file?)");
   in->close();
   // Integer formats hold sRGB-encoded colour (PNG, JPEG); relit works in linear radiance.
   const bool encoded = spec.format.basetype != OIIO::TypeDesc::FLOAT && spec.format.basetype != OIIO::TypeDesc::HALF &&
@@ -68,7 +70,8 @@ void write_image(const std::string& path, const Image& image) {
     throw InvalidArgument("cannot write '" + path + "': the image is empty or its size does not match its pixels");
   const std::string ext = lower_extension(path);
   if (!is_float_format(ext) && !is_8bit_format(ext))
-    throw InvalidArgument("cannot write '" + path + "': unsupported extension '" + ext + "' (use .exr for linear float or .png for 8-bit sRGB)");
+    throw InvalidArgument("cannot write '" + path + "': unsupported extension '" + ext +
+                          "' (use .exr for linear float or .png for 8-bit sRGB)");
   const fs::path target(path);
   if (target.has_parent_path() && !fs::is_directory(target.parent_path()))
     throw IOError("cannot write '" + path + "': folder '" + target.parent_path().string() + "' does not exist");
@@ -77,10 +80,13 @@ void write_image(const std::string& path, const Image& image) {
   auto out = OIIO::ImageOutput::create(tmp.string());
   if (!out) throw IOError("cannot write '" + path + "': " + OIIO::geterror());
   const bool eight_bit = is_8bit_format(ext);
-  OIIO::ImageSpec spec(image.width, image.height, image.channels, eight_bit ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
+  OIIO::ImageSpec spec(image.width, image.height, image.channels,
+                       eight_bit ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
   if (image.channels == 4) spec.alpha_channel = 3;
-  if (eight_bit) spec.attribute("oiio:ColorSpace", "sRGB");
-  else spec.attribute("compression", "zip");
+  if (eight_bit)
+    spec.attribute("oiio:ColorSpace", "sRGB");
+  else
+    spec.attribute("compression", "zip");
 
   std::vector<float> data = image.pixels;
   if (eight_bit) {

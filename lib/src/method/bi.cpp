@@ -11,8 +11,13 @@ namespace relit::method {
 namespace {
 
 Json default_coarse() {
-  return {{"encoding", {{"type", "HashGrid"}, {"n_levels", 12}, {"n_features_per_level", 2}, {"log2_hashmap_size", 17},
-                        {"base_resolution", 16}, {"per_level_scale", 1.32}}},
+  return {{"encoding",
+           {{"type", "HashGrid"},
+            {"n_levels", 12},
+            {"n_features_per_level", 2},
+            {"log2_hashmap_size", 17},
+            {"base_resolution", 16},
+            {"per_level_scale", 1.32}}},
           {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}}};
 }
 
@@ -96,8 +101,9 @@ void NeuralReflectanceField::backward(ModelPass& base, const Buffer<float>& rays
                                       const std::vector<const Buffer<float>*>& d_colors, const PassOptions& o) {
   BiPass& pass = bi_pass(base);
   if (d_colors.size() != 2 || !pass.basis)
-    throw InvalidArgument("NeuralReflectanceField::backward: give dL/dcolour of the coarse and the fine image of a "
-                          "training render()");
+    throw InvalidArgument(
+        "NeuralReflectanceField::backward: give dL/dcolour of the coarse and the fine image of a "
+        "training render()");
   backward_branch(pass, fine_branch(), rays, pass.basis->dirs(), pass.basis->basis(), *d_colors[1], o.timer, o.env);
   backward_branch(pass.coarse, coarse_branch(), rays, pass.basis->dirs(), pass.basis->basis(), *d_colors[0], o.timer,
                   o.env);

@@ -7,7 +7,8 @@
 namespace relit::method {
 
 std::vector<report::ViewResult> evaluate(const Model& model, const std::string& dataset_dir, const std::string& out_dir,
-                                         const EvalOptions& options, const Json& meta, const ProgressCallback& progress) {
+                                         const EvalOptions& options, const Json& meta,
+                                         const ProgressCallback& progress) {
   if (options.splits.empty()) throw InvalidArgument("evaluate: no splits given");
   std::vector<DatasetSplit> splits;
   std::size_t total = 0;

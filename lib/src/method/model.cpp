@@ -30,8 +30,10 @@ void StageTimer::mark(const std::string& stage) {
   m_device.finish();
   const double t = now_seconds();
   auto it = std::find_if(m_seconds.begin(), m_seconds.end(), [&](const auto& p) { return p.first == stage; });
-  if (it == m_seconds.end()) m_seconds.emplace_back(stage, t - m_last);
-  else it->second += t - m_last;
+  if (it == m_seconds.end())
+    m_seconds.emplace_back(stage, t - m_last);
+  else
+    it->second += t - m_last;
   m_last = t;
 }
 

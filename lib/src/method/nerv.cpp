@@ -90,20 +90,29 @@ class TwoStageNetwork final : public nn::Network {
     nn::match_rows(w.head_in, input, nt + m_dir);
     nn::copy_columns(device, input, 0, w.trunk_in, 0, m_pos);
     const nn::ConstParamSlice head{params.buffer, params.offset + m_trunk->n_params()};
-    if (training) m_trunk->forward(device, params, w.trunk_in, w.trunk_out, *w.trunk);
-    else m_trunk->inference(device, params, w.trunk_in, w.trunk_out, *w.trunk);
+    if (training)
+      m_trunk->forward(device, params, w.trunk_in, w.trunk_out, *w.trunk);
+    else
+      m_trunk->inference(device, params, w.trunk_in, w.trunk_out, *w.trunk);
     nn::copy_columns(device, w.trunk_out, 0, w.head_in, 0, nt);
     nn::copy_columns(device, input, m_pos, w.head_in, nt, m_dir);
-    if (training) m_head->forward(device, head, w.head_in, output, *w.head);
-    else m_head->inference(device, head, w.head_in, output, *w.head);
+    if (training)
+      m_head->forward(device, head, w.head_in, output, *w.head);
+    else
+      m_head->inference(device, head, w.head_in, output, *w.head);
   }
   std::unique_ptr<nn::Network> m_trunk, m_head;
   std::uint32_t m_pos, m_dir;
 };
 
 Json default_visibility() {
-  return {{"position_encoding", {{"type", "HashGrid"}, {"n_levels", 8}, {"n_features_per_level", 2},
-                                 {"log2_hashmap_size", 15}, {"base_resolution", 8}, {"per_level_scale", 1.5}}},
+  return {{"position_encoding",
+           {{"type", "HashGrid"},
+            {"n_levels", 8},
+            {"n_features_per_level", 2},
+            {"log2_hashmap_size", 15},
+            {"base_resolution", 8},
+            {"per_level_scale", 1.5}}},
           {"direction_encoding", {{"type", "SphericalHarmonics"}, {"degree", 4}}},
           {"trunk", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}},
           {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 1}}}};
@@ -145,13 +154,15 @@ void NeRV::configure_extra(config::Reader& r, config::Docs* docs) {
   }
   const std::string ptr = r.pointer("visibility");
   const Json defaults = default_visibility();
-  config::Reader v(r.sub("visibility", defaults, "object",
-                         "visibility net V_ψ: {position_encoding, trunk, n_trunk_outputs, direction_encoding, network}"),
-                   ptr, "visibility");
+  config::Reader v(
+      r.sub("visibility", defaults, "object",
+            "visibility net V_ψ: {position_encoding, trunk, n_trunk_outputs, direction_encoding, network}"),
+      ptr, "visibility");
   Json penc = v.sub("position_encoding", defaults["position_encoding"], "component", "position encoding (3 dims)");
   Json denc = v.sub("direction_encoding", defaults["direction_encoding"], "component", "direction encoding (3 dims)");
   const Json trunk_json = v.sub("trunk", defaults["trunk"], "component", "the MLP on the encoded position");
-  const std::uint32_t n_trunk = v.uint("n_trunk_outputs", 8, 1, 64, "the trunk's outputs, joined with the encoded direction");
+  const std::uint32_t n_trunk =
+      v.uint("n_trunk_outputs", 8, 1, 64, "the trunk's outputs, joined with the encoded direction");
   const Json head_json = v.sub("network", defaults["network"], "component",
                                "the head on [trunk outputs, encoded direction] (outputs: V sigmoid, depth softplus)");
   v.finish();
@@ -161,10 +172,11 @@ void NeRV::configure_extra(config::Reader& r, config::Docs* docs) {
   auto enc = nn::create_encoding({{"type", "Composite"}, {"nested", {penc, denc}}}, 6, ptr);
   const auto& parts = dynamic_cast<const nn::CompositeEncoding&>(*enc).parts();
   const std::uint32_t n_pos = parts[0].encoding->n_output_dims(), n_dir = parts[1].encoding->n_output_dims();
-  const Json tj = detail::with_heads(trunk_json, ptr + "/trunk", Json::array({{{"n_dims", n_trunk}, {"activation", "None"}}}));
-  const Json hj = detail::with_heads(head_json, ptr + "/network",
-                                     Json::array({{{"n_dims", 1}, {"activation", "Sigmoid"}},
-                                                  {{"n_dims", 1}, {"activation", "Softplus"}}}));
+  const Json tj =
+      detail::with_heads(trunk_json, ptr + "/trunk", Json::array({{{"n_dims", n_trunk}, {"activation", "None"}}}));
+  const Json hj = detail::with_heads(
+      head_json, ptr + "/network",
+      Json::array({{{"n_dims", 1}, {"activation", "Sigmoid"}}, {{"n_dims", 1}, {"activation", "Softplus"}}}));
   auto trunk = nn::create_network(tj, n_pos, n_trunk, ptr + "/trunk");
   auto head = nn::create_network(hj, n_trunk + n_dir, 2, ptr + "/network");
   Json res = v.resolved();
@@ -190,7 +202,8 @@ void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, co
   Ours::render(pass, rays, n_rays, o);  // direct light: the samples, σ, albedo, g, V and the colour
   const std::uint32_t K = bounce_dirs(o.env != nullptr, o.training), spr = m_settings.renderer.n_samples;
   const std::uint32_t nq = n_rays * K;
-  if (!pass.bounce_dirs || pass.n_bounce != K) pass.bounce_dirs = std::make_unique<render::IndirectBasis>(m_device, K, -1);
+  if (!pass.bounce_dirs || pass.n_bounce != K)
+    pass.bounce_dirs = std::make_unique<render::IndirectBasis>(m_device, K, -1);
   pass.n_bounce = K;
   pass.bounce_dirs->draw(o.seed ^ 0x2545F491u, o.iteration);
   const std::uint32_t vd = m_visibility->n_output_dims(), pc = m_property->n_output_dims();
@@ -216,7 +229,9 @@ void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, co
       .args(n_rays, spr, rays, pass.t, pass.delta, pass.props.data(), pass.props.cols(), pass.albedo_sum, pass.x_t,
             pass.keep_termination ? 1u : 0u)
       .launch(n_rays, 16);
-  m_device.kernel("nerv.cl", "nerv_bounce_queries").args(n_rays, K, pass.x_t, dirs.data(), pass.bounce_in.data()).launch(nq, 64);
+  m_device.kernel("nerv.cl", "nerv_bounce_queries")
+      .args(n_rays, K, pass.x_t, dirs.data(), pass.bounce_in.data())
+      .launch(nq, 64);
   const nn::ConstParamSlice psi{&m_vis_params, 0};
   const auto& grid = m_grid;
   auto visibility = [&](const nn::BatchMatrix& in, nn::BatchMatrix& out, nn::Workspace& ws) {
@@ -235,8 +250,10 @@ void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, co
             pass.light_in.data())
       .launch(nq + n_rays, 64);
   const nn::ConstParamSlice theta{&m_params, 0};
-  if (o.training) m_property->forward(m_device, theta, pass.bounce_pos, pass.bounce_props, *pass.ws_bounce_property);
-  else m_property->inference(m_device, theta, pass.bounce_pos, pass.bounce_props, *pass.ws_bounce_property);
+  if (o.training)
+    m_property->forward(m_device, theta, pass.bounce_pos, pass.bounce_props, *pass.ws_bounce_property);
+  else
+    m_property->inference(m_device, theta, pass.bounce_pos, pass.bounce_props, *pass.ws_bounce_property);
   visibility(pass.light_in, pass.light_vd, *pass.ws_light_vis);
   // Under an environment, the bounce points see its N_e directions too.
   pass.env = o.env;
@@ -276,8 +293,8 @@ void NeRV::add_property_gradients(OursPass& base, const Branch& branch, const Bu
   const Buffer<float>& env_weights = n_env ? pass.env->weights().data() : pass.env_in.data();
   m_device.kernel("nerv.cl", "nerv_indirect_backward")
       .args(n_rays, K, rays, pass.bounce_dirs->dirs().data(), pass.x_b, pass.bounce_props.data(), pc, g_scale(),
-            pass.light_vd.data(), vd, n_env, env_dirs, env_weights, pass.env_vd.data(), pass.albedo_sum,
-            pass.indirect, d_color, pass.d_bounce_props.data(), pass.dw)
+            pass.light_vd.data(), vd, n_env, env_dirs, env_weights, pass.env_vd.data(), pass.albedo_sum, pass.indirect,
+            d_color, pass.d_bounce_props.data(), pass.dw)
       .launch(n_rays, 16);
   m_device.kernel("nerv.cl", "nerv_samples_backward")
       .args(n_rays, pass.n_samples, pass.delta, pass.props.data(), pass.props.cols(), pass.dw, pass.d_props.data())
@@ -290,8 +307,8 @@ void NeRV::backward(ModelPass& base, const Buffer<float>& rays, const std::vecto
   if (pass.n_bounce == 0) throw InvalidArgument("NeRV::backward: no training render() before");
   Ours::backward(pass, rays, d_colors, o);  // direct light and W (add_property_gradients); overwrites dθ
   // The bounce points and x_t: their albedo and g, added to the property net's gradient.
-  m_property->backward(m_device, {&m_params, 0}, pass.bounce_pos, pass.bounce_props, pass.d_bounce_props,
-                       {&m_grads, 0}, true, nullptr, *pass.ws_bounce_property);
+  m_property->backward(m_device, {&m_params, 0}, pass.bounce_pos, pass.bounce_props, pass.d_bounce_props, {&m_grads, 0},
+                       true, nullptr, *pass.ws_bounce_property);
   if (o.timer) o.timer->mark("indirect bounce backward");
 }
 
@@ -312,8 +329,8 @@ void NeRV::train_visibility(ModelPass& base, const Buffer<float>& rays, const nn
   nn::ensure_rows(pass.d_train, m_device, rows, 2);
   pass.train_in.data().copy_from(pass.vis_in.data(), std::size_t(m) * 6);
   // Whole 16-row tiles of the bounce queries (rows past mb land in the padding, which the loss ignores).
-  const std::size_t tiles_rows = std::min<std::size_t>({round_up(mb, 16), pass.bounce_in.padded(),
-                                                        std::size_t(pass.train_in.padded()) - m});
+  const std::size_t tiles_rows =
+      std::min<std::size_t>({round_up(mb, 16), pass.bounce_in.padded(), std::size_t(pass.train_in.padded()) - m});
   pass.train_in.data().copy_from(pass.bounce_in.data(), tiles_rows * 6, 0, std::size_t(m) * 6);
   m_device.kernel("nerv.cl", "nerv_march_targets")
       .args(rows, pass.train_in.data(), m_grid.sigma, m_grid.dims[0], m_grid.dims[1], m_grid.dims[2],

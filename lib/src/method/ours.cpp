@@ -19,8 +19,13 @@ using detail::strip_heads;
 using detail::with_heads;
 
 Json default_property() {
-  return {{"encoding", {{"type", "HashGrid"}, {"n_levels", 12}, {"n_features_per_level", 2}, {"log2_hashmap_size", 17},
-                        {"base_resolution", 16}, {"per_level_scale", 1.32}}},
+  return {{"encoding",
+           {{"type", "HashGrid"},
+            {"n_levels", 12},
+            {"n_features_per_level", 2},
+            {"log2_hashmap_size", 17},
+            {"base_resolution", 16},
+            {"per_level_scale", 1.32}}},
           {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}}};
 }
 Json default_indirect() {
@@ -31,8 +36,13 @@ Json default_environment() {
   return {{"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 1}}}};
 }
 Json default_visibility() {
-  return {{"position_encoding", {{"type", "HashGrid"}, {"n_levels", 8}, {"n_features_per_level", 2},
-                                 {"log2_hashmap_size", 15}, {"base_resolution", 8}, {"per_level_scale", 1.5}}},
+  return {{"position_encoding",
+           {{"type", "HashGrid"},
+            {"n_levels", 8},
+            {"n_features_per_level", 2},
+            {"log2_hashmap_size", 15},
+            {"base_resolution", 8},
+            {"per_level_scale", 1.5}}},
           {"direction_encoding", {{"type", "SphericalHarmonics"}, {"degree", 4}}},
           {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}}};
 }
@@ -92,21 +102,26 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   {
     config::Reader rr(r.sub("renderer", Json::object(), "object", "the volume renderer (DESIGN §4.2)"),
                       r.pointer("renderer"), "renderer");
-    s.renderer.n_samples = rr.uint("n_samples", 64, 16, 1024,
-                                   m_variant == Variant::bi ? "stratified samples per ray of the coarse network (a multiple of 16)"
-                                                            : "samples per ray (a multiple of 16)");
-    if (s.renderer.n_samples % 16) rr.fail("n_samples", "must be a multiple of 16, got " + std::to_string(s.renderer.n_samples));
+    s.renderer.n_samples =
+        rr.uint("n_samples", 64, 16, 1024,
+                m_variant == Variant::bi ? "stratified samples per ray of the coarse network (a multiple of 16)"
+                                         : "samples per ray (a multiple of 16)");
+    if (s.renderer.n_samples % 16)
+      rr.fail("n_samples", "must be a multiple of 16, got " + std::to_string(s.renderer.n_samples));
     const bool has_sh = has_sh_head();
     if (!has_sh) configure_renderer_extra(rr);
     const bool brdf = m_variant == Variant::ours_brdf;
     if (brdf) s.renderer.scattering = "brdf";
-    const std::string sh = !has_sh ? std::string("none") : rr.choice("sh", brdf ? "1" : "5", {"none", "0", "1", "2", "3", "4", "5", "6", "7", "8", "9"},
-                                     "SH bands of the indirect light: l_max, or none (no indirect light)");
+    const std::string sh =
+        !has_sh ? std::string("none")
+                : rr.choice("sh", brdf ? "1" : "5", {"none", "0", "1", "2", "3", "4", "5", "6", "7", "8", "9"},
+                            "SH bands of the indirect light: l_max, or none (no indirect light)");
     s.renderer.sh_lmax = sh == "none" ? -1 : std::stoi(sh);
     if (has_sh) s.renderer.n_dirs = rr.uint("n_dirs", 64, 1, 4096, "K, uniform directions of the indirect-light sum");
-    if (has_sh && !brdf) s.renderer.closed_form_indirect = rr.boolean("closed_form_indirect", false,
-                                                 "closed-form indirect light sum_lm g^l c_lm Y_lm(-w_o) instead of "
-                                                 "the K-direction sum (no max(0, .) clamp)");
+    if (has_sh && !brdf)
+      s.renderer.closed_form_indirect = rr.boolean("closed_form_indirect", false,
+                                                   "closed-form indirect light sum_lm g^l c_lm Y_lm(-w_o) instead of "
+                                                   "the K-direction sum (no max(0, .) clamp)");
     rr.finish();
     record(rr);
     r.set_resolved("renderer", rr.resolved());
@@ -124,14 +139,15 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     s.light_conditioned = false;
   }
   s.initial_density = r.number("initial_density", 0.6931472f, 1e-3f, 1e3f,
-                                "σ everywhere at initialisation (the σ head's bias is softplus⁻¹ of it; the default, "
-                                "ln 2, is a zero bias). A dense start keeps the interiors that camera rays never "
-                                "reach opaque, so shadows do not leak");
+                               "σ everywhere at initialisation (the σ head's bias is softplus⁻¹ of it; the default, "
+                               "ln 2, is a zero bias). A dense start keeps the interiors that camera rays never "
+                               "reach opaque, so shadows do not leak");
   {
     config::Reader gr(r.sub("density_grid", Json::object(), "object", "the cached density grid of visibility targets"),
                       r.pointer("density_grid"), "density_grid");
     s.grid_resolution = gr.uint("resolution", 64, 4, 512, "voxels per axis");
-    s.grid_refresh = gr.uint("refresh_every", 16, 1, 1u << 20, "training steps between refreshes from the property net");
+    s.grid_refresh =
+        gr.uint("refresh_every", 16, 1, 1u << 20, "training steps between refreshes from the property net");
     s.march_steps = gr.uint("march_steps", 64, 1, 4096, "midpoint steps of each visibility-target march");
     s.visibility_fraction = gr.number("visibility_fraction", 0.25f, 1e-3f, 1.0f,
                                       "share of each batch's rays whose samples train the visibility net");
@@ -163,12 +179,14 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
                                               "share of each batch's rays whose samples train the visibility net "
                                               "toward the environment directions");
     if (env_head)
-      env_network = sub.component("network", default_environment(), "the c_env head's MLP on the features (output: none)");
+      env_network =
+          sub.component("network", default_environment(), "the c_env head's MLP on the features (output: none)");
     sub.finish();
     env_resolved = sub.reader.resolved();
   }
 
-  const std::uint32_t n_sh = s.renderer.sh_lmax < 0 ? 0 : std::uint32_t((s.renderer.sh_lmax + 1) * (s.renderer.sh_lmax + 1));
+  const std::uint32_t n_sh =
+      s.renderer.sh_lmax < 0 ? 0 : std::uint32_t((s.renderer.sh_lmax + 1) * (s.renderer.sh_lmax + 1));
   // Property network: [0,1]^3 position → sigma, albedo, g, features.
   {
     SubConfig sub(r, "property", default_property(),
@@ -194,7 +212,7 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     const auto* mlp = dynamic_cast<const nn::FullyFusedMLP*>(&m_property->network());
     if (s.initial_density != OursSettings{}.initial_density && !(mlp && mlp->has_bias()))
       throw ConfigError(r.pointer("initial_density"), "needs a property network with biases (" + ptr +
-                                                     "/network: FullyFusedMLP with \"bias\": true)");
+                                                          "/network: FullyFusedMLP with \"bias\": true)");
     Json res = m_property->hyperparams();
     res["network"] = strip_heads(res["network"]);
     r.set_resolved("property", res);
@@ -202,7 +220,8 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
   // Indirect SH head: [features, light position (, V toward the light) (, exp(-k τ) toward it)] → 3 n_sh coefficients
   // per unit intensity.
   if (n_sh > 0) {
-    SubConfig sub(r, "indirect", default_indirect(), "indirect SH head h_θ: {light_encoding, network, visibility_input, optical_depth_input}", docs);
+    SubConfig sub(r, "indirect", default_indirect(),
+                  "indirect SH head h_θ: {light_encoding, network, visibility_input, optical_depth_input}", docs);
     const Json lenc = sub.component("light_encoding", default_indirect(), "encoding of the light position (3 dims)");
     Json net = sub.component("network", default_indirect(), "the head's MLP (output activation: none)");
     s.indirect_visibility_input = sub.reader.boolean(
@@ -251,7 +270,8 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     const std::string ptr = r.pointer("environment");
     Json res = env_resolved;
     if (s.environment.enabled && n_sh > 0) {
-      const Json net = with_heads(env_network, ptr + "/network", Json::array({{{"n_dims", 3 * n_sh}, {"activation", "None"}}}));
+      const Json net =
+          with_heads(env_network, ptr + "/network", Json::array({{{"n_dims", 3 * n_sh}, {"activation", "None"}}}));
       auto e = nn::create_encoding({{"type", "Identity"}}, s.n_features, ptr);
       auto n = nn::create_network(net, e->n_output_dims(), 3 * n_sh, ptr + "/network");
       m_environment = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
@@ -276,7 +296,8 @@ void Ours::configure(const Json& config, const std::string& pointer, config::Doc
     auto n = nn::create_network(net, e->n_output_dims(), 1, ptr + "/network");
     m_visibility = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
     const Json nested = m_visibility->encoding().hyperparams()["nested"];
-    Json res{{"position_encoding", nested[0]}, {"direction_encoding", nested[1]},
+    Json res{{"position_encoding", nested[0]},
+             {"direction_encoding", nested[1]},
              {"network", strip_heads(m_visibility->network().hyperparams())}};
     res["position_encoding"].erase("n_dims_to_encode");
     res["direction_encoding"].erase("n_dims_to_encode");
@@ -333,8 +354,8 @@ void Ours::set_initial_density(float* theta) const {
   const auto* mlp = dynamic_cast<const nn::FullyFusedMLP*>(&m_property->network());
   if (!mlp || !mlp->has_bias()) return;  // refused when the config was read
   // softplus⁻¹(σ0) = log(expm1(σ0)), written to stay finite for large σ0.
-  const double bias = sigma0 > 20.0f ? double(sigma0) + std::log(-std::expm1(-double(sigma0)))
-                                     : std::log(std::expm1(double(sigma0)));
+  const double bias =
+      sigma0 > 20.0f ? double(sigma0) + std::log(-std::expm1(-double(sigma0))) : std::log(std::expm1(double(sigma0)));
   const std::uint32_t out_layer = mlp->n_hidden_layers();
   theta[m_property->encoding().n_params() + mlp->layer_offset(out_layer) + mlp->layer_inputs(out_layer)] =
       static_cast<float>(bias);  // row 0 (σ) of the output layer, its bias column
@@ -399,8 +420,9 @@ void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& r
                           const nn::BatchMatrix& sh_basis, bool march, StageTimer* timer,
                           const render::EnvironmentSamples* env, bool place_samples) const {
   if (env && !m_settings.environment.enabled)
-    throw InvalidArgument("Ours::forward: an environment light was given, but the model was trained without one "
-                          "(model/environment/enabled is false); render it under its point light alone");
+    throw InvalidArgument(
+        "Ours::forward: an environment light was given, but the model was trained without one "
+        "(model/environment/enabled is false); render it under its point light alone");
   const std::uint32_t n_env = env ? env->size() : 0;
   if (place_samples) prepare_branch(pass, branch, n_rays, n_env);
   const std::uint32_t spr = branch.n_samples;
@@ -418,9 +440,11 @@ void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& r
   const nn::ConstParamSlice theta{&m_params, branch.theta_offset};
   const nn::ConstParamSlice theta_sh{&m_params, m_property->n_params()};
   const nn::ConstParamSlice psi{&m_vis_params, 0};
-  if (training) branch.property->forward(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
-  else branch.property->inference(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
-  nn::copy_columns(m_device, pass.props_raw, 0, pass.props, render::kSigma, 4);  // sigma, albedo
+  if (training)
+    branch.property->forward(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
+  else
+    branch.property->inference(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
+  nn::copy_columns(m_device, pass.props_raw, 0, pass.props, render::kSigma, 4);         // sigma, albedo
   nn::copy_columns(m_device, pass.props_raw, 4, pass.props, render::kG, 1, g_scale());  // Bi et al.: g = 0
   if (renderer.brdf()) nn::copy_columns(m_device, pass.props_raw, 5, pass.props, renderer.normal_col(), 3);
   mark(timer, "property net forward");
@@ -461,15 +485,20 @@ void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& r
                                pass.depth_in, m_settings.indirect_optical_depth);
       nn::copy_columns(m_device, pass.depth_in, 0, pass.light_in, indirect_input_cols(m_settings) - 1, 1);
     }
-    if (training) m_indirect->forward(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
-    else m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
+    if (training)
+      m_indirect->forward(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
+    else
+      m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,
                                    1.0f / m_settings.intensity_reference);
-    if (m_settings.indirect_depth_attenuation) nn::multiply_columns(m_device, pass.depth_in, pass.props, render::kSH, 3 * n_sh);
+    if (m_settings.indirect_depth_attenuation)
+      nn::multiply_columns(m_device, pass.depth_in, pass.props, render::kSH, 3 * n_sh);
     if (m_environment && n_env > 0) {  // c += c_env(f(x)): the environment's indirect light, not scaled by I
       const nn::ConstParamSlice theta_env{&m_params, m_property->n_params() + m_indirect->n_params()};
-      if (training) m_environment->forward(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
-      else m_environment->inference(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
+      if (training)
+        m_environment->forward(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
+      else
+        m_environment->inference(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
       nn::copy_columns(m_device, pass.env_raw, 0, pass.props, render::kSH, 3 * n_sh, 1.0f, true);
     }
     mark(timer, "SH head forward");
@@ -486,9 +515,9 @@ void Ours::forward_branch(OursPass& pass, const Branch& branch, Buffer<float>& r
   mark(timer, "lighting + compositing forward");
 }
 
-void Ours::backward_branch(OursPass& pass, const Branch& branch, const Buffer<float>& rays,
-                           const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, const Buffer<float>& d_color,
-                           StageTimer* timer, const render::EnvironmentSamples* env) {
+void Ours::backward_branch(OursPass& pass, const Branch& branch, const Buffer<float>& rays, const nn::BatchMatrix& dirs,
+                           const nn::BatchMatrix& sh_basis, const Buffer<float>& d_color, StageTimer* timer,
+                           const render::EnvironmentSamples* env) {
   check_pass(pass, "backward");
   const std::uint32_t n_env = env ? env->size() : 0;
   if (n_env != pass.n_env)
@@ -497,8 +526,9 @@ void Ours::backward_branch(OursPass& pass, const Branch& branch, const Buffer<fl
   const std::uint32_t spr = branch.n_samples;
   const std::uint32_t n_sh = m_renderer->n_sh();
   const bool closed = m_settings.renderer.closed_form_indirect && n_sh > 0;
-  renderer_for(spr, n_env).backward(rays, pass.n_rays, pass.t, pass.delta, pass.props, dirs, closed ? pass.view_basis : sh_basis,
-                           pass.radiance, pass.color, d_color, pass.d_radiance, pass.d_props, env);
+  renderer_for(spr, n_env)
+      .backward(rays, pass.n_rays, pass.t, pass.delta, pass.props, dirs, closed ? pass.view_basis : sh_basis,
+                pass.radiance, pass.color, d_color, pass.d_radiance, pass.d_props, env);
   add_property_gradients(pass, branch, rays, d_color);
   mark(timer, "lighting + compositing backward");
   // No SH head: the features receive no gradient.
@@ -511,7 +541,8 @@ void Ours::backward_branch(OursPass& pass, const Branch& branch, const Buffer<fl
   if (n_sh > 0) {
     nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.d_props, render::kSH, pass.d_indirect_raw, 0, n_sh,
                                    1.0f / m_settings.intensity_reference);
-    if (m_settings.indirect_depth_attenuation) nn::multiply_columns(m_device, pass.depth_in, pass.d_indirect_raw, 0, 3 * n_sh);
+    if (m_settings.indirect_depth_attenuation)
+      nn::multiply_columns(m_device, pass.depth_in, pass.d_indirect_raw, 0, 3 * n_sh);
     m_indirect->backward(m_device, {&m_params, m_property->n_params()}, pass.light_in, pass.indirect_raw,
                          pass.d_indirect_raw, {&m_grads, m_property->n_params()}, false, &pass.d_light_in,
                          *pass.ws_indirect);
@@ -529,8 +560,8 @@ void Ours::backward_branch(OursPass& pass, const Branch& branch, const Buffer<fl
     }
     mark(timer, "SH head backward");
   }
-  branch.property->backward(m_device, {&m_params, branch.theta_offset}, pass.net_pos, pass.props_raw,
-                            pass.d_props_raw, {&m_grads, branch.theta_offset}, false, nullptr, *pass.ws_property);
+  branch.property->backward(m_device, {&m_params, branch.theta_offset}, pass.net_pos, pass.props_raw, pass.d_props_raw,
+                            {&m_grads, branch.theta_offset}, false, nullptr, *pass.ws_property);
   mark(timer, "property net backward");
 }
 
@@ -603,7 +634,9 @@ void Ours::refresh_density_grid() {
     const std::uint32_t n = std::min(chunk, total - first);
     m_grid_positions.resize(n);
     m_grid_props.resize(n);
-    m_device.kernel("method.cl", "grid_positions").args(n, first, d[0], d[1], d[2], m_grid_positions.data()).launch(n, 64);
+    m_device.kernel("method.cl", "grid_positions")
+        .args(n, first, d[0], d[1], d[2], m_grid_positions.data())
+        .launch(n, 64);
     m_property->inference(m_device, {&m_params, 0}, m_grid_positions, m_grid_props, *m_grid_ws);
     m_device.kernel("method.cl", "column_to_flat")
         .args(n, m_grid_props.cols(), 0u, m_grid_props.data(), m_grid.sigma, first)

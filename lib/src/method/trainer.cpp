@@ -76,8 +76,8 @@ void set_method(Json& config, const std::string& method, const std::string& sour
   if (method.empty()) return;
   config_for_method("fast", method);  // an unknown method is an error naming the valid ones
   if (config.contains("method") && config["method"] != method)
-    throw ConfigError("/method", "is " + config["method"].dump() + " in " + source + " but the method asked for is " +
-                                     method);
+    throw ConfigError("/method",
+                      "is " + config["method"].dump() + " in " + source + " but the method asked for is " + method);
   config["method"] = method;
 }
 
@@ -124,7 +124,8 @@ DatasetSplit load_split(const std::string& dataset_dir, const std::string& split
     const auto& f = frames[k];
     const std::string path = (fs::path(dataset_dir) / f.file_path).string();
     const Image img = read_image(path);
-    if (img.channels < 3) throw IOError(path + ": expected an RGB(A) image, it has " + std::to_string(img.channels) + " channels");
+    if (img.channels < 3)
+      throw IOError(path + ": expected an RGB(A) image, it has " + std::to_string(img.channels) + " channels");
     if (img.width != f.camera.width || img.height != f.camera.height)
       throw IOError(path + ": the image is " + std::to_string(img.width) + "x" + std::to_string(img.height) +
                     " but its camera says " + std::to_string(f.camera.width) + "x" + std::to_string(f.camera.height));
@@ -227,7 +228,8 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
   const std::string method = r.resolved().value("method", "ours");
   Json loss, vis_loss, opt, vis_opt;
   {
-    config::Reader tr(r.sub("training", Json::object(), "object", "training settings"), r.pointer("training"), "training");
+    config::Reader tr(r.sub("training", Json::object(), "object", "training settings"), r.pointer("training"),
+                      "training");
     m_settings = read_training(tr, loss, vis_loss, opt, vis_opt);
     m_loss = nn::create_loss(loss, "/training/loss");
     m_vis_loss = nn::create_loss(vis_loss, "/training/visibility_loss");
@@ -245,10 +247,10 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
   Json model_config = model;
   {
     const bool has_env = train.environment != nullptr;
-    const Json* given = model.contains("environment") && model["environment"].is_object() &&
-                                model["environment"].contains("enabled")
-                            ? &model["environment"]["enabled"]
-                            : nullptr;
+    const Json* given =
+        model.contains("environment") && model["environment"].is_object() && model["environment"].contains("enabled")
+            ? &model["environment"]["enabled"]
+            : nullptr;
     if (given && given->is_boolean() && given->get<bool>() != has_env)
       throw ConfigError("/model/environment/enabled",
                         std::string("is ") + (has_env ? "false" : "true") + " but the dataset " + dataset_dir +
@@ -263,7 +265,7 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
   m_config["dataset"] = fs::absolute(dataset_dir).lexically_normal().string();
 
   log_info("training on " + std::to_string(train.size()) + " views of " + dataset_dir + " (" +
-            std::to_string(train.width) + "x" + std::to_string(train.height) + ")");
+           std::to_string(train.width) + "x" + std::to_string(train.height) + ")");
   m_rays = std::make_unique<render::RaySource>(device, train.cameras, train.lights, train.images);
   if (m_settings.validate_every && m_settings.validation_views) {
     const auto desc = read_dataset(dataset_dir);
@@ -375,8 +377,8 @@ double Trainer::validate() {
 
 void Trainer::write_log(const TrainStats& s) const {
   if (m_out.empty()) return;
-  Json line{{"step", s.step},          {"loss", s.loss},       {"visibility_loss", s.visibility_loss},
-            {"lr", s.learning_rate},   {"skipped", s.skipped}, {"steps_per_second", s.steps_per_second},
+  Json line{{"step", s.step},        {"loss", s.loss},       {"visibility_loss", s.visibility_loss},
+            {"lr", s.learning_rate}, {"skipped", s.skipped}, {"steps_per_second", s.steps_per_second},
             {"elapsed", s.elapsed}};
   if (!std::isnan(s.val_psnr)) line["val_psnr"] = s.val_psnr;
   std::ofstream out(fs::path(m_out) / "log.jsonl", std::ios::app);
@@ -398,7 +400,7 @@ TrainStats Trainer::run_until(std::uint64_t target, const TrainCallback& callbac
     st.eta = st.steps_per_second > 0 ? double(target - m_step) / st.steps_per_second : 0;
     if (st.skipped > skipped_before)
       log_warning("skipped " + std::to_string(st.skipped - skipped_before) + " step(s) before step " +
-                std::to_string(m_step) + ": the loss was not finite (NaN/Inf); parameters left unchanged");
+                  std::to_string(m_step) + ": the loss was not finite (NaN/Inf); parameters left unchanged");
     skipped_before = st.skipped;
     write_log(st);
     return !callback || callback(st);
@@ -441,8 +443,8 @@ void get(const io::Checkpoint& c, const std::string& name, Buffer<float>& b, con
   auto it = c.tensors.find(name);
   if (it == c.tensors.end()) throw IOError(path + ": checkpoint has no tensor '" + name + "'");
   if (it->second.size() != b.size())
-    throw IOError(path + ": tensor '" + name + "' has " + std::to_string(it->second.size()) + " values, the model needs " +
-                  std::to_string(b.size()) + " (a checkpoint of another config?)");
+    throw IOError(path + ": tensor '" + name + "' has " + std::to_string(it->second.size()) +
+                  " values, the model needs " + std::to_string(b.size()) + " (a checkpoint of another config?)");
   b.write(it->second);
 }
 }  // namespace
@@ -471,8 +473,10 @@ void Trainer::load_checkpoint(const std::string& path) {
   if (theirs.contains("training")) theirs["training"].erase("steps");
   if (ours.contains("training")) ours["training"].erase("steps");
   if (theirs != ours)
-    throw InvalidArgument(path + ": the checkpoint was written with another config; resume with the run's own "
-                                 "config.json (diff: " + Json::diff(ours, theirs).dump() + ")");
+    throw InvalidArgument(path +
+                          ": the checkpoint was written with another config; resume with the run's own "
+                          "config.json (diff: " +
+                          Json::diff(ours, theirs).dump() + ")");
   get(c, "theta", m_model->params(), path);
   get(c, "psi", m_model->vis_params(), path);
   get(c, "density_grid", m_model->density_grid().sigma, path);
@@ -518,8 +522,9 @@ Image render_image(const Model& model, const Camera& camera, const PointLight& l
   std::unique_ptr<render::EnvironmentSamples> env;
   if (settings.environment) {
     if (!model.has_environment())
-      throw InvalidArgument("render_image: the model was trained without an environment light; render it under "
-                            "its point light alone (no environment)");
+      throw InvalidArgument(
+          "render_image: the model was trained without an environment light; render it under "
+          "its point light alone (no environment)");
     env = std::make_unique<render::EnvironmentSamples>(device, *settings.environment, model.env_dirs());
   }
   // Keep a tile's network queries near 2^19 (N_e visibility queries per sample with an environment, ...).

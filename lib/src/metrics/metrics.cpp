@@ -31,8 +31,8 @@ ImageComparison compare(const Device& device, const std::vector<float>& predicti
                         std::uint32_t width, std::uint32_t height, std::uint32_t channels) {
   const std::size_t n = std::size_t(width) * height * channels;
   if (channels == 0 || prediction.size() != n || reference.size() != n)
-    throw InvalidArgument("metrics::compare: expected two " + std::to_string(height) + "x" + std::to_string(width) + "x" +
-                          std::to_string(channels) + " images (" + std::to_string(n) + " values), got " +
+    throw InvalidArgument("metrics::compare: expected two " + std::to_string(height) + "x" + std::to_string(width) +
+                          "x" + std::to_string(channels) + " images (" + std::to_string(n) + " values), got " +
                           std::to_string(prediction.size()) + " and " + std::to_string(reference.size()));
   if (width < 2 * kRadius + 1 || height < 2 * kRadius + 1)
     throw InvalidArgument("metrics::compare: SSIM needs images of at least 11x11 pixels, got " + std::to_string(width) +
@@ -40,8 +40,8 @@ ImageComparison compare(const Device& device, const std::vector<float>& predicti
   for (const auto* img : {&prediction, &reference})
     for (float v : *img)
       if (std::isnan(v))
-        throw InvalidArgument(std::string("metrics::compare: the ") + (img == &prediction ? "prediction" : "reference") +
-                              " contains NaN");
+        throw InvalidArgument(std::string("metrics::compare: the ") +
+                              (img == &prediction ? "prediction" : "reference") + " contains NaN");
   Buffer<float> a(device, prediction), b(device, reference);
   const auto count = static_cast<std::uint32_t>(n);
   device.kernel("metrics.cl", "to_srgb").args(count, a).launch(count, 64);

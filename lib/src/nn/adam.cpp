@@ -14,9 +14,11 @@ class Adam final : public Optimizer {
     m_lr = r.number("learning_rate", 1e-2f, 0.0f, 10.0f, "base step size");
     m_beta1 = r.number("beta1", 0.9f, 0.0f, 0.999999f, "decay of the first-moment average");
     m_beta2 = r.number("beta2", 0.99f, 0.0f, 0.99999999f, "decay of the second-moment average");
-    m_epsilon = r.number("epsilon", 1e-15f, 0.0f, 1.0f, "added to sqrt(v): 1e-15 for hash grids (instant-ngp), 1e-8 "
-                                                        "for NeRF-style networks");
-    m_weight_decay = r.number("weight_decay", 0.0f, 0.0f, 1.0f, "decoupled (AdamW) weight decay per unit learning rate");
+    m_epsilon = r.number("epsilon", 1e-15f, 0.0f, 1.0f,
+                         "added to sqrt(v): 1e-15 for hash grids (instant-ngp), 1e-8 "
+                         "for NeRF-style networks");
+    m_weight_decay =
+        r.number("weight_decay", 0.0f, 0.0f, 1.0f, "decoupled (AdamW) weight decay per unit learning rate");
     m_decay_rate = r.number("decay_rate", 1.0f, 1e-6f, 1.0f,
                             "learning rate multiplier per decay_steps steps: lr(t) = learning_rate * decay_rate^(t / "
                             "decay_steps); 1 keeps it constant");
@@ -53,7 +55,8 @@ class Adam final : public Optimizer {
     const float inv_c2 = static_cast<float>(1.0 / (1.0 - std::pow(double(m_beta2), t)));
     const auto n = static_cast<std::uint32_t>(params.size());
     m_device.kernel("adam.cl", "adam_step")
-        .args(n, lr, m_beta1, m_beta2, m_epsilon, m_weight_decay, inv_c1, inv_c2, params, grads, m_m, m_v, m_guard ? *m_guard : m_no_guard)
+        .args(n, lr, m_beta1, m_beta2, m_epsilon, m_weight_decay, inv_c1, inv_c2, params, grads, m_m, m_v,
+              m_guard ? *m_guard : m_no_guard)
         .launch(n, 64);
   }
 

@@ -32,7 +32,8 @@ void BatchMatrix::upload_row_major(const std::vector<float>& host) {
                           std::to_string(m_batch) + " samples x " + std::to_string(m_cols) + " features");
   std::vector<float> tiled(static_cast<std::size_t>(m_padded) * m_cols, 0.0f);
   for (std::uint32_t s = 0; s < m_batch; ++s)
-    for (std::uint32_t f = 0; f < m_cols; ++f) tiled[tiled_index(s, f, m_cols)] = host[static_cast<std::size_t>(s) * m_cols + f];
+    for (std::uint32_t f = 0; f < m_cols; ++f)
+      tiled[tiled_index(s, f, m_cols)] = host[static_cast<std::size_t>(s) * m_cols + f];
   m_data.write(tiled);
 }
 
@@ -40,7 +41,8 @@ std::vector<float> BatchMatrix::download_row_major() const {
   const std::vector<float> tiled = m_data.read();
   std::vector<float> host(static_cast<std::size_t>(m_batch) * m_cols);
   for (std::uint32_t s = 0; s < m_batch; ++s)
-    for (std::uint32_t f = 0; f < m_cols; ++f) host[static_cast<std::size_t>(s) * m_cols + f] = tiled[tiled_index(s, f, m_cols)];
+    for (std::uint32_t f = 0; f < m_cols; ++f)
+      host[static_cast<std::size_t>(s) * m_cols + f] = tiled[tiled_index(s, f, m_cols)];
   return host;
 }
 

@@ -37,7 +37,8 @@ void scale_rgb_by_ray_intensity(const Device& device, const Buffer<float>& rays,
   if (rays.size() < std::size_t((src.batch() + samples_per_ray - 1) / samples_per_ray) * 20)
     throw InvalidArgument("scale_rgb_by_ray_intensity: fewer ray records than the samples need");
   device.kernel("columns.cl", "scale_rgb_by_ray_intensity")
-      .args(n_tiles, per_channel, samples_per_ray, scale, rays, src.data(), src.cols(), src_col, dst.data(), dst.cols(), dst_col)
+      .args(n_tiles, per_channel, samples_per_ray, scale, rays, src.data(), src.cols(), src_col, dst.data(), dst.cols(),
+            dst_col)
       .launch(n_tiles, 16);
 }
 
@@ -50,7 +51,9 @@ void multiply_columns(const Device& device, const BatchMatrix& factor, BatchMatr
                           std::to_string(m.batch()));
   const std::uint32_t n_tiles = (m.batch() + kBatchTile - 1) / kBatchTile;
   if (n_tiles == 0 || count == 0) return;
-  device.kernel("columns.cl", "multiply_columns").args(n_tiles, count, factor.data(), m.data(), m.cols(), col).launch(n_tiles, 16);
+  device.kernel("columns.cl", "multiply_columns")
+      .args(n_tiles, count, factor.data(), m.data(), m.cols(), col)
+      .launch(n_tiles, 16);
 }
 
 }  // namespace relit::nn

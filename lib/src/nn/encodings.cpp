@@ -39,8 +39,8 @@ std::unique_ptr<Encoding> make_hash_grid(config::Reader& r, std::uint32_t n_dims
   o.n_features_per_level = r.uint_choice("n_features_per_level", 2, {1, 2, 4, 8}, "features per level and entry");
   o.log2_hashmap_size = r.uint("log2_hashmap_size", 19, 10, 24, "log2 of the table entries per level (T)");
   o.base_resolution = r.uint("base_resolution", 16, 2, 1u << 20, "cells per axis of the coarsest level");
-  o.per_level_scale = r.number("per_level_scale", 2.0f, 1.0f, 8.0f,
-                               "growth factor of the resolution from one level to the next");
+  o.per_level_scale =
+      r.number("per_level_scale", 2.0f, 1.0f, 8.0f, "growth factor of the resolution from one level to the next");
   o.gradient_ranges = r.uint("gradient_ranges", 0, 0, 4096,
                              "table ranges per level in the gradient pass, for parallelism (0: per device, 1 on "
                              "CPUs); the gradient is bit-for-bit the same for any value");
@@ -71,7 +71,8 @@ std::unique_ptr<Encoding> make_composite(config::Reader& r, std::uint32_t n_dims
     std::uint32_t dims = n_dims > used ? n_dims - used : 0;
     if (auto it = item.find("n_dims_to_encode"); it != item.end()) {
       const bool integral = it->is_number_integer() || it->is_number_unsigned();
-      if (!integral || it->get<std::int64_t>() < 1 || it->get<std::int64_t>() > static_cast<std::int64_t>(n_dims - used))
+      if (!integral || it->get<std::int64_t>() < 1 ||
+          it->get<std::int64_t>() > static_cast<std::int64_t>(n_dims - used))
         throw ConfigError(ptr + "/n_dims_to_encode", "must be an integer in [1, " + std::to_string(n_dims - used) +
                                                          "] (the input dims not yet encoded), got " + it->dump());
       dims = it->get<std::uint32_t>();
@@ -100,8 +101,7 @@ void register_encodings(EncodingRegistry& registry) {
   registry.add("Frequency", "NeRF positional encoding: sin and cos of 2^k pi x, k = 0..n_frequencies-1",
                make_frequency);
   registry.add("SphericalHarmonics", "real spherical harmonics of a unit direction (seed eq. 2)", make_sh);
-  registry.add("HashGrid", "multiresolution hash encoding (instant-ngp) of positions in [0, 1]^d",
-               make_hash_grid);
+  registry.add("HashGrid", "multiresolution hash encoding (instant-ngp) of positions in [0, 1]^d", make_hash_grid);
   registry.add("Composite", "nested encodings over consecutive input dims, outputs concatenated", make_composite);
 }
 

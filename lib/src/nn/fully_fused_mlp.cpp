@@ -50,12 +50,12 @@ class MlpWorkspace final : public Workspace {
  public:
   explicit MlpWorkspace(Device device) : device(std::move(device)) {}
   Device device;
-  std::uint32_t padded = 0;          // batch capacity of act/dz (0 until forward())
-  bool saved = false;                // forward() saved the activations into act (not for the fused training)
+  std::uint32_t padded = 0;  // batch capacity of act/dz (0 until forward())
+  bool saved = false;        // forward() saved the activations into act (not for the fused training)
   // Feature-major (row f = feature f of every sample, `padded` floats per row): act holds the rows
   // [x (n_input), ones, h_0 (width), ..., h_(L-1)], dz the rows [dZ_0 (width), ..., dZ_(L-1), dZ_out].
   Buffer<float> act, dz, partial;
-  Buffer<float> scratch;             // the fused training kernel's per-chunk scratch
+  Buffer<float> scratch;  // the fused training kernel's per-chunk scratch
 };
 
 }  // namespace
@@ -150,8 +150,8 @@ struct FullyFusedMLP::Kernels {
 FullyFusedMLP::FullyFusedMLP(config::Reader& r, std::uint32_t n_input_dims, std::uint32_t n_output_dims)
     : m_n_input(n_input_dims), m_n_output(n_output_dims) {
   if (n_input_dims == 0 || n_output_dims == 0)
-    r.fail("", "FullyFusedMLP needs at least one input and one output dimension (got " +
-                   std::to_string(n_input_dims) + " -> " + std::to_string(n_output_dims) + ")");
+    r.fail("", "FullyFusedMLP needs at least one input and one output dimension (got " + std::to_string(n_input_dims) +
+                   " -> " + std::to_string(n_output_dims) + ")");
   m_width = r.uint_choice("n_neurons", 64, {16, 32, 64, 128, 256}, "width of every hidden layer");
   m_n_hidden = r.uint("n_hidden_layers", 2, 1, 32, "number of hidden layers");
   m_hidden_activation = activation_from_name(
@@ -254,18 +254,24 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
     top_skip = std::max(top_skip, l);
   }
   std::string acts;
-  for (Activation a : m_output_activations)
-    acts += (acts.empty() ? "" : ",") + std::to_string(static_cast<int>(a));
-  const Defines defines = {
-      {"N_IN", std::to_string(m_n_input)},        {"WIDTH", std::to_string(m_width)},
-      {"N_HIDDEN", std::to_string(m_n_hidden)},   {"N_OUT", std::to_string(m_n_output)},
-      {"SKIP_MASK", std::to_string(skip_mask) + "u"}, {"TOP_SKIP", std::to_string(top_skip)},
-      {"HIDDEN_ACT", std::to_string(static_cast<int>(m_hidden_activation))},
-      {"OUT_ACTS", acts},                         {"BIAS", m_bias ? "1" : "0"},
-      {"FWD_T", std::to_string(b.forward_tiles)}, {"FWD_R", std::to_string(b.forward_rows)},
-      {"BWD_R", std::to_string(b.backward_rows)}, {"DW_VEC", std::to_string(b.dw_vector)},
-      {"DW_RJ", std::to_string(b.dw_rows)},       {"DW_RK", std::to_string(b.dw_cols)},
-      {"DW_ROWS", std::to_string(b.dw_region)},   {"TRAIN_G", std::to_string(b.train_group)}};
+  for (Activation a : m_output_activations) acts += (acts.empty() ? "" : ",") + std::to_string(static_cast<int>(a));
+  const Defines defines = {{"N_IN", std::to_string(m_n_input)},
+                           {"WIDTH", std::to_string(m_width)},
+                           {"N_HIDDEN", std::to_string(m_n_hidden)},
+                           {"N_OUT", std::to_string(m_n_output)},
+                           {"SKIP_MASK", std::to_string(skip_mask) + "u"},
+                           {"TOP_SKIP", std::to_string(top_skip)},
+                           {"HIDDEN_ACT", std::to_string(static_cast<int>(m_hidden_activation))},
+                           {"OUT_ACTS", acts},
+                           {"BIAS", m_bias ? "1" : "0"},
+                           {"FWD_T", std::to_string(b.forward_tiles)},
+                           {"FWD_R", std::to_string(b.forward_rows)},
+                           {"BWD_R", std::to_string(b.backward_rows)},
+                           {"DW_VEC", std::to_string(b.dw_vector)},
+                           {"DW_RJ", std::to_string(b.dw_rows)},
+                           {"DW_RK", std::to_string(b.dw_cols)},
+                           {"DW_ROWS", std::to_string(b.dw_region)},
+                           {"TRAIN_G", std::to_string(b.train_group)}};
   const Program program = device.program("mlp.cl", defines);
   auto k = std::make_unique<Kernels>();
   k->device = device;
@@ -327,13 +333,14 @@ void FullyFusedMLP::inference(const Device& device, ConstParamSlice params, cons
   launch_forward(device, params, input, output, nullptr, 0);
 }
 
-void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const BatchMatrix& input,
-                            BatchMatrix& output, Workspace& workspace) const {
+void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
+                            Workspace& workspace) const {
   check_input("forward", input);
   auto* ws = dynamic_cast<MlpWorkspace*>(&workspace);
   if (!ws || ws->device != device)
-    throw InvalidArgument("FullyFusedMLP::forward: the workspace was not made by this network's make_workspace "
-                          "for this device");
+    throw InvalidArgument(
+        "FullyFusedMLP::forward: the workspace was not made by this network's make_workspace "
+        "for this device");
   if (fused_training(device)) {  // backward() recomputes the activations: nothing to save
     ws->padded = std::max(ws->padded, input.padded());
     ws->saved = false;
@@ -350,8 +357,8 @@ void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const 
 }
 
 void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const BatchMatrix& input,
-                             const BatchMatrix& output, const BatchMatrix& d_output, ParamSlice grads,
-                             bool accumulate, BatchMatrix* d_input, Workspace& workspace) const {
+                             const BatchMatrix& output, const BatchMatrix& d_output, ParamSlice grads, bool accumulate,
+                             BatchMatrix* d_input, Workspace& workspace) const {
   check_input("backward", input);
   auto* ws = dynamic_cast<MlpWorkspace*>(&workspace);
   if (!ws || ws->device != device || ws->padded < input.padded())
@@ -398,7 +405,8 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     const std::size_t rows = m_n_input + 1 + std::size_t(m_n_hidden) * m_width + 2 * std::max(m_width, m_n_output);
     const std::size_t stride = round_up(16 * (np + rows * t + m_n_input), 16);
     if (ws->scratch.size() < n_chunks * stride) ws->scratch = Buffer<float>(device, n_chunks * stride);
-    if (ws->partial.size() < std::size_t(n_chunks) * np) ws->partial = Buffer<float>(device, std::size_t(n_chunks) * np);
+    if (ws->partial.size() < std::size_t(n_chunks) * np)
+      ws->partial = Buffer<float>(device, std::size_t(n_chunks) * np);
     Kernel tk = k.train;
     tk.args(n_tiles, batch, chunk_tiles, np, *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(),
             output.data(), d_output.data(), d_input ? d_input->data() : ws->scratch,
@@ -440,9 +448,8 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     const std::uint32_t regions = (n_out + k.blocking.dw_region - 1) / k.blocking.dw_region;
     const std::uint32_t x_row = l == 0 || has_skip(l) ? 0 : m_n_input;  // x rows then the ones row
     const std::uint32_t x_n = (l == 0 || has_skip(l) ? m_n_input : 0) + (m_bias ? 1 : 0);
-    wk.args(plan.n_samples, plan.chunk_len, plan.n_chunks, plan.sub, ws->padded, ws->dz, l * m_width, n_out,
-            ws->act, l == 0 ? 0u : m_n_input + 1 + (l - 1) * m_width, a_n, x_row, x_n, ws->partial, np,
-            layer_offset(l));
+    wk.args(plan.n_samples, plan.chunk_len, plan.n_chunks, plan.sub, ws->padded, ws->dz, l * m_width, n_out, ws->act,
+            l == 0 ? 0u : m_n_input + 1 + (l - 1) * m_width, a_n, x_row, x_n, ws->partial, np, layer_offset(l));
     // Few, long work-items: keep at least ~4 work-groups per compute unit for load balance.
     const std::size_t items = std::size_t(plan.n_chunks) * regions;
     std::size_t local = k.local_weight_grad;

@@ -57,19 +57,22 @@ void register_losses(LossRegistry& registry) {
   registry.add("L2", "mean of (prediction - target)^2", [](config::Reader& r) -> std::unique_ptr<Loss> {
     return std::make_unique<KernelLoss>("L2", 0, 0.0f, with_type("L2", r));
   });
-  registry.add("RelativeL2", "mean of (prediction - target)^2 / (prediction^2 + epsilon), no gradient through the "
-                             "denominator (robust to HDR targets)",
+  registry.add("RelativeL2",
+               "mean of (prediction - target)^2 / (prediction^2 + epsilon), no gradient through the "
+               "denominator (robust to HDR targets)",
                [](config::Reader& r) -> std::unique_ptr<Loss> {
                  const float eps = r.number("epsilon", 0.01f, 1e-8f, 1e3f, "added to prediction^2 in the denominator");
                  return std::make_unique<KernelLoss>("RelativeL2", 1, eps, with_type("RelativeL2", r));
                });
-  registry.add("ToneMappedL2", "mean of (m(prediction) - m(target))^2 with m(x) = x / (1 + |x|): L2 after "
-                               "Reinhard tone mapping of linear HDR radiance",
+  registry.add("ToneMappedL2",
+               "mean of (m(prediction) - m(target))^2 with m(x) = x / (1 + |x|): L2 after "
+               "Reinhard tone mapping of linear HDR radiance",
                [](config::Reader& r) -> std::unique_ptr<Loss> {
                  return std::make_unique<KernelLoss>("ToneMappedL2", 2, 0.0f, with_type("ToneMappedL2", r));
                });
-  registry.add("SrgbL2", "mean of (s(prediction) - s(target))^2 with s the sRGB transfer curve (unclamped above 1, odd "
-                         "below 0): L2 in the space where PSNR/SSIM are measured",
+  registry.add("SrgbL2",
+               "mean of (s(prediction) - s(target))^2 with s the sRGB transfer curve (unclamped above 1, odd "
+               "below 0): L2 in the space where PSNR/SSIM are measured",
                [](config::Reader& r) -> std::unique_ptr<Loss> {
                  return std::make_unique<KernelLoss>("SrgbL2", 3, 0.0f, with_type("SrgbL2", r));
                });

@@ -20,8 +20,9 @@ CompositeWorkspace& cast(Workspace& w) {
 NetworkWithInputEncoding::NetworkWithInputEncoding(std::unique_ptr<Encoding> encoding, std::unique_ptr<Network> network)
     : m_encoding(std::move(encoding)), m_network(std::move(network)) {
   if (m_encoding->n_output_dims() != m_network->n_input_dims())
-    throw InvalidArgument("NetworkWithInputEncoding: the encoding gives " + std::to_string(m_encoding->n_output_dims()) +
-                          " dims but the network takes " + std::to_string(m_network->n_input_dims()));
+    throw InvalidArgument("NetworkWithInputEncoding: the encoding gives " +
+                          std::to_string(m_encoding->n_output_dims()) + " dims but the network takes " +
+                          std::to_string(m_network->n_input_dims()));
 }
 
 std::unique_ptr<NetworkWithInputEncoding> NetworkWithInputEncoding::create(const Json& config, std::uint32_t n_in,

@@ -39,7 +39,9 @@ const OptimizerRegistry& optimizers() {
   return registry;
 }
 
-std::unique_ptr<Loss> create_loss(const Json& json, const std::string& pointer) { return losses().create(json, pointer); }
+std::unique_ptr<Loss> create_loss(const Json& json, const std::string& pointer) {
+  return losses().create(json, pointer);
+}
 
 std::unique_ptr<Optimizer> create_optimizer(const Json& json, const std::string& pointer) {
   return optimizers().create(json, pointer);

@@ -22,10 +22,10 @@ Trainer::Trainer(const Device& device, std::unique_ptr<Network> model, std::uniq
 void Trainer::step(const BatchMatrix& input, const BatchMatrix& target) {
   if (input.cols() != m_model->n_input_dims() || target.cols() != m_model->n_output_dims() ||
       input.batch() != target.batch())
-    throw InvalidArgument("Trainer::step: inputs " + std::to_string(input.batch()) + "x" + std::to_string(input.cols()) +
-                          " and targets " + std::to_string(target.batch()) + "x" + std::to_string(target.cols()) +
-                          " do not fit a model of " + std::to_string(m_model->n_input_dims()) + " → " +
-                          std::to_string(m_model->n_output_dims()));
+    throw InvalidArgument("Trainer::step: inputs " + std::to_string(input.batch()) + "x" +
+                          std::to_string(input.cols()) + " and targets " + std::to_string(target.batch()) + "x" +
+                          std::to_string(target.cols()) + " do not fit a model of " +
+                          std::to_string(m_model->n_input_dims()) + " → " + std::to_string(m_model->n_output_dims()));
   m_output.resize(input.batch());
   m_d_output.resize(input.batch());
   m_model->forward(m_device, {&m_params, 0}, input, m_output, *m_workspace);

@@ -11,8 +11,11 @@ namespace relit {
 namespace {
 
 double furnace_sigma(const Device& dev, int res) {
-  const Json j = {{"medium", {{"source", {{"type", "cloud"}, {"resolution", 24}, {"seed", 2}}}, {"density_scale", 8.0},
-                              {"albedo", 1.0}, {"g", 0.5}}},
+  const Json j = {{"medium",
+                   {{"source", {{"type", "cloud"}, {"resolution", 24}, {"seed", 2}}},
+                    {"density_scale", 8.0},
+                    {"albedo", 1.0},
+                    {"g", 0.5}}},
                   {"environment", {{"radiance", {0.5, 0.5, 0.5}}, {"visible", true}}}};
   const Scene scene = Scene::from_json(j);
   const Camera cam = Camera::look_at({0.3f, -3.0f, 0.4f}, {0, 0, 0}, {0, 0, 1}, 0.45f, res, res);
@@ -32,7 +35,8 @@ PathTraceBenchmark benchmark_pathtracer(const Device& device, int resolution, st
                                         int scene_resolution) {
   if (resolution < 1 || reps < 1) throw InvalidArgument("benchmark resolution and reps must be >= 1");
   PathTraceBenchmark b;
-  b.scene = "cloud (" + std::to_string(scene_resolution) + "^3, density_scale 20, albedo 0.96, g 0.4), point light at distance 4";
+  b.scene = "cloud (" + std::to_string(scene_resolution) +
+            "^3, density_scale 20, albedo 0.96, g 0.4), point light at distance 4";
   b.resolution = resolution, b.spp = spp, b.reps = reps;
   b.furnace_sigma = furnace_sigma(device, std::min(resolution, 16));
   if (!(b.furnace_sigma < 5.0))

@@ -121,7 +121,8 @@ RenderResult PathTracer::render(const Camera& camera, const std::vector<PointLig
 
   cl_float4 rows[3];
   for (int r = 0; r < 3; ++r)
-    rows[r] = cl_float4{{camera.transform[r][0], camera.transform[r][1], camera.transform[r][2], camera.transform[r][3]}};
+    rows[r] =
+        cl_float4{{camera.transform[r][0], camera.transform[r][1], camera.transform[r][2], camera.transform[r][3]}};
   const cl_float4 params{{camera.focal(), float(camera.width), float(camera.height), 0}};
 
   // Passes of `chunk` samples over tiles of `tile` pixels, each launch about samples_per_launch samples.
@@ -157,16 +158,18 @@ RenderResult PathTracer::render(const Camera& camera, const std::vector<PointLig
     for (int c = 0; c < 4; ++c) {
       const double mean = sum[p].s[c] * inv;
       out.image.pixels[p * 4 + c] = float(mean);
-      const double var = rs.spp > 1 ? std::max(0.0, (sum_sq[p].s[c] * inv - mean * mean) * rs.spp / (rs.spp - 1.0)) : 0.0;
+      const double var =
+          rs.spp > 1 ? std::max(0.0, (sum_sq[p].s[c] * inv - mean * mean) * rs.spp / (rs.spp - 1.0)) : 0.0;
       out.variance.pixels[p * 4 + c] = float(var);
     }
   for (float v : out.image.pixels)
-    if (!std::isfinite(v)) throw DeviceError("the path tracer produced NaN or infinite pixels: a kernel bug; please report it");
+    if (!std::isfinite(v))
+      throw DeviceError("the path tracer produced NaN or infinite pixels: a kernel bug; please report it");
   return out;
 }
 
-Image render_reference(const Device& device, const Scene& scene, std::size_t camera_index, const RenderSettings& settings,
-                       const ProgressCallback& progress) {
+Image render_reference(const Device& device, const Scene& scene, std::size_t camera_index,
+                       const RenderSettings& settings, const ProgressCallback& progress) {
   if (camera_index >= scene.cameras.size())
     throw InvalidArgument("the scene has " + std::to_string(scene.cameras.size()) + " camera(s); index " +
                           std::to_string(camera_index) + " does not exist (add \"cameras\" to the scene JSON)");

@@ -15,8 +15,9 @@ EnvironmentSamples::EnvironmentSamples(const Device& device, const EnvironmentLi
     throw InvalidArgument("EnvironmentSamples: environment directions N_e must be in [1, " +
                           std::to_string(kMaxEnvDirs) + "], got " + std::to_string(n_env_dirs));
   if (light.empty())
-    throw InvalidArgument("EnvironmentSamples: the environment light has no image; give the scene an environment "
-                          "(a map file or a uniform radiance) or set n_env_dirs to 0");
+    throw InvalidArgument(
+        "EnvironmentSamples: the environment light has no image; give the scene an environment "
+        "(a map file or a uniform radiance) or set n_env_dirs to 0");
   const Image& image = light.image();
   if (image.channels != 4)
     throw InvalidArgument("EnvironmentSamples: expected the environment's RGBA image, got " +

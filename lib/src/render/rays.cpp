@@ -5,7 +5,6 @@
 
 #include <string>
 
-
 namespace relit::render {
 
 std::array<float, 16> camera_record(const Camera& camera) {
@@ -21,7 +20,7 @@ std::array<float, 16> camera_record(const Camera& camera) {
 
 std::array<float, 8> light_record(const PointLight& light) {
   light.validate();
-  return {light.position[0], light.position[1], light.position[2], 0.0f,
+  return {light.position[0],  light.position[1],  light.position[2],  0.0f,
           light.intensity[0], light.intensity[1], light.intensity[2], 0.0f};
 }
 
@@ -64,7 +63,8 @@ void RaySource::training_batch(std::uint32_t n_rays, std::uint32_t seed, std::ui
       pixel_ids.size() < n_rays)
     throw InvalidArgument("RaySource::training_batch: buffers too small for " + std::to_string(n_rays) + " rays");
   m_device.kernel("rays.cl", "training_rays")
-      .args(n_rays, seed, iteration, m_n_images, m_width, m_height, m_cameras, m_lights, m_images, rays, targets, pixel_ids)
+      .args(n_rays, seed, iteration, m_n_images, m_width, m_height, m_cameras, m_lights, m_images, rays, targets,
+            pixel_ids)
       .launch(n_rays, 16);
 }
 
@@ -76,8 +76,10 @@ std::vector<float> to_vector(const std::array<float, N>& a) {
 }  // namespace
 
 ImageRays::ImageRays(const Device& device, const Camera& camera, const PointLight& light)
-    : m_device(device), m_width(static_cast<std::uint32_t>(camera.width)),
-      m_camera(device, to_vector(camera_record(camera))), m_light(device, to_vector(light_record(light))) {}
+    : m_device(device),
+      m_width(static_cast<std::uint32_t>(camera.width)),
+      m_camera(device, to_vector(camera_record(camera))),
+      m_light(device, to_vector(light_record(light))) {}
 
 void ImageRays::operator()(std::uint32_t first, std::uint32_t n_rays, Buffer<float>& rays,
                            std::array<float, 2> offset) const {
@@ -98,10 +100,14 @@ std::array<float, 2> pixel_sample_offset(std::uint32_t spp, std::uint32_t s) {
   std::uint32_t n = 1;
   while (n * n < spp) ++n;
   if (spp == 0 || n * n != spp)
-    throw InvalidArgument("samples per pixel must be a square (1, 4, 9, 16, ...): they form an n x n grid in each "
-                          "pixel; got " + std::to_string(spp));
-  if (s >= spp) throw InvalidArgument("pixel_sample_offset: sample " + std::to_string(s) + " of " + std::to_string(spp));
-  return {(static_cast<float>(s % n) + 0.5f) / static_cast<float>(n), (static_cast<float>(s / n) + 0.5f) / static_cast<float>(n)};
+    throw InvalidArgument(
+        "samples per pixel must be a square (1, 4, 9, 16, ...): they form an n x n grid in each "
+        "pixel; got " +
+        std::to_string(spp));
+  if (s >= spp)
+    throw InvalidArgument("pixel_sample_offset: sample " + std::to_string(s) + " of " + std::to_string(spp));
+  return {(static_cast<float>(s % n) + 0.5f) / static_cast<float>(n),
+          (static_cast<float>(s / n) + 0.5f) / static_cast<float>(n)};
 }
 
 }  // namespace relit::render

@@ -9,7 +9,8 @@ namespace relit::render {
 
 namespace {
 void check_grid(const DensityGrid& grid, std::uint32_t steps, const char* what) {
-  const std::size_t cells = std::size_t(std::max(grid.dims[0], 0)) * std::max(grid.dims[1], 0) * std::max(grid.dims[2], 0);
+  const std::size_t cells =
+      std::size_t(std::max(grid.dims[0], 0)) * std::max(grid.dims[1], 0) * std::max(grid.dims[2], 0);
   if (grid.dims[0] < 1 || grid.dims[1] < 1 || grid.dims[2] < 1 || grid.sigma.size() != cells)
     throw InvalidArgument(std::string(what) + ": the density grid holds " + std::to_string(grid.sigma.size()) +
                           " values for " + std::to_string(grid.dims[0]) + "x" + std::to_string(grid.dims[1]) + "x" +
@@ -23,7 +24,8 @@ void march_visibility(const Device& device, const Buffer<float>& rays, std::uint
                       nn::BatchMatrix& visibility, float depth_scale) {
   const std::uint64_t n = std::uint64_t(n_rays) * n_samples;
   if (positions.batch() != n || positions.cols() != 3 || visibility.cols() != 1)
-    throw InvalidArgument("march_visibility: expected " + std::to_string(n) + " sample positions (3 columns) and a "
+    throw InvalidArgument("march_visibility: expected " + std::to_string(n) +
+                          " sample positions (3 columns) and a "
                           "1-column visibility matrix");
   if (n_samples == 0 || n_samples % nn::kBatchTile != 0)
     throw InvalidArgument("march_visibility: samples per ray must be a positive multiple of 16, got " +
@@ -35,8 +37,8 @@ void march_visibility(const Device& device, const Buffer<float>& rays, std::uint
   device
       .kernel("visibility.cl", "march_to_light",
               {{"N_SAMPLES", std::to_string(n_samples)}, {"MARCH_STEPS", std::to_string(steps)}})
-      .args(static_cast<std::uint32_t>(n / nn::kBatchTile), positions.data(), rays, grid.sigma, grid.dims[0], grid.dims[1], grid.dims[2],
-            depth_scale, visibility.data())
+      .args(static_cast<std::uint32_t>(n / nn::kBatchTile), positions.data(), rays, grid.sigma, grid.dims[0],
+            grid.dims[1], grid.dims[2], depth_scale, visibility.data())
       .launch(n / nn::kBatchTile, 16);
 }
 

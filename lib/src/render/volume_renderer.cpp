@@ -19,26 +19,26 @@ VolumeRenderer::VolumeRenderer(const Device& device, const RendererSettings& set
     throw InvalidArgument("RendererSettings::scattering must be \"phase\" (media) or \"brdf\" (solids), got \"" +
                           settings.scattering + "\"");
   if (m_brdf && settings.closed_form_indirect)
-    throw InvalidArgument("RendererSettings: closed_form_indirect has no closed form with scattering \"brdf\" (the "
-                          "Funk-Hecke identity it uses holds for the HG phase function only); set "
-                          "closed_form_indirect = false to use the K-direction sum");
+    throw InvalidArgument(
+        "RendererSettings: closed_form_indirect has no closed form with scattering \"brdf\" (the "
+        "Funk-Hecke identity it uses holds for the HG phase function only); set "
+        "closed_form_indirect = false to use the K-direction sum");
   if (settings.n_samples == 0 || settings.n_samples % nn::kBatchTile != 0 || settings.n_samples > 4096)
     throw InvalidArgument("samples per ray must be a positive multiple of 16 up to 4096, got " +
                           std::to_string(settings.n_samples));
   if (settings.sh_lmax < -1 || settings.sh_lmax > 9)
-    throw InvalidArgument("sh_lmax must be in [-1, 9] (-1: no indirect light), got " + std::to_string(settings.sh_lmax));
+    throw InvalidArgument("sh_lmax must be in [-1, 9] (-1: no indirect light), got " +
+                          std::to_string(settings.sh_lmax));
   if (settings.n_dirs == 0 || settings.n_dirs > 4096)
     throw InvalidArgument("indirect-light directions must be in [1, 4096], got " + std::to_string(settings.n_dirs));
   if (settings.n_env_dirs > 1024)
     throw InvalidArgument("environment directions n_env_dirs must be in [0, 1024] (0: no environment light), got " +
                           std::to_string(settings.n_env_dirs));
   m_n_sh = settings.sh_lmax < 0 ? 0 : static_cast<std::uint32_t>((settings.sh_lmax + 1) * (settings.sh_lmax + 1));
-  m_defines = {{"N_SAMPLES", std::to_string(settings.n_samples)},
-               {"N_SH", std::to_string(m_n_sh)},
-               {"N_DIRS", std::to_string(settings.n_dirs)},
-               {"INDIRECT_MODE", settings.closed_form_indirect ? "1" : "0"},
-               {"N_ENV", std::to_string(settings.n_env_dirs)},
-               {"SCATTERING_BRDF", m_brdf ? "1" : "0"}};
+  m_defines = {
+      {"N_SAMPLES", std::to_string(settings.n_samples)}, {"N_SH", std::to_string(m_n_sh)},
+      {"N_DIRS", std::to_string(settings.n_dirs)},       {"INDIRECT_MODE", settings.closed_form_indirect ? "1" : "0"},
+      {"N_ENV", std::to_string(settings.n_env_dirs)},    {"SCATTERING_BRDF", m_brdf ? "1" : "0"}};
   if (m_n_sh) m_sh = nn::create_encoding({{"type", "SphericalHarmonics"}, {"degree", settings.sh_lmax + 1}}, 3);
 }
 
@@ -47,7 +47,8 @@ void VolumeRenderer::view_basis(const Buffer<float>& rays, std::uint32_t n_rays,
   out.resize(n_rays);
   if (!m_sh || n_rays == 0) return;
   // The SH encoding wants its input padded as its output: reallocate when the padding differs.
-  if (m_view_dirs.cols() != 3 || m_view_dirs.padded() != out.padded()) m_view_dirs = nn::BatchMatrix(m_device, n_rays, 3);
+  if (m_view_dirs.cols() != 3 || m_view_dirs.padded() != out.padded())
+    m_view_dirs = nn::BatchMatrix(m_device, n_rays, 3);
   m_view_dirs.resize(n_rays);
   m_device.kernel("render.cl", "view_directions", m_defines).args(n_rays, rays, m_view_dirs.data()).launch(n_rays, 16);
   m_sh->forward(m_device, {nullptr, 0}, m_view_dirs, out, 0, nullptr);
@@ -60,18 +61,20 @@ void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, c
     throw InvalidArgument(std::string("VolumeRenderer::") + what + ": n_env_dirs = " + std::to_string(n_env) +
                           " needs the environment samples of this iteration (EnvironmentSamples), got none");
   if (n_env == 0 && env)
-    throw InvalidArgument(std::string("VolumeRenderer::") + what + ": environment samples given to a renderer "
+    throw InvalidArgument(std::string("VolumeRenderer::") + what +
+                          ": environment samples given to a renderer "
                           "without environment light; set RendererSettings::n_env_dirs to their count (" +
                           std::to_string(env->size()) + ")");
   if (env && env->size() != n_env)
     throw InvalidArgument(std::string("VolumeRenderer::") + what + ": the environment samples hold " +
-                          std::to_string(env->size()) + " directions, the renderer was built for n_env_dirs = " +
-                          std::to_string(n_env));
+                          std::to_string(env->size()) +
+                          " directions, the renderer was built for n_env_dirs = " + std::to_string(n_env));
   if (m_settings.closed_form_indirect) {
     if (sh_basis.batch() != n_rays || sh_basis.cols() != m_n_sh)
-      throw InvalidArgument(std::string("VolumeRenderer::") + what + ": the closed-form indirect option needs the "
-                            "view basis of every ray (" + std::to_string(n_rays) + "x" + std::to_string(m_n_sh) +
-                            ", from view_basis())");
+      throw InvalidArgument(std::string("VolumeRenderer::") + what +
+                            ": the closed-form indirect option needs the "
+                            "view basis of every ray (" +
+                            std::to_string(n_rays) + "x" + std::to_string(m_n_sh) + ", from view_basis())");
   } else if (dirs.batch() != m_settings.n_dirs || dirs.cols() != 3 || sh_basis.batch() != m_settings.n_dirs ||
              sh_basis.cols() != m_n_sh) {
     throw InvalidArgument(std::string("VolumeRenderer::") + what + ": need " + std::to_string(m_settings.n_dirs) +
@@ -123,9 +126,9 @@ void VolumeRenderer::forward(const Buffer<float>& rays, std::uint32_t n_rays, co
 
 void VolumeRenderer::backward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t,
                               const Buffer<float>& delta, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
-                              const nn::BatchMatrix& sh_basis, const nn::BatchMatrix& radiance, const Buffer<float>& color,
-                              const Buffer<float>& d_color, nn::BatchMatrix& d_radiance, nn::BatchMatrix& d_props,
-                              const EnvironmentSamples* env) const {
+                              const nn::BatchMatrix& sh_basis, const nn::BatchMatrix& radiance,
+                              const Buffer<float>& color, const Buffer<float>& d_color, nn::BatchMatrix& d_radiance,
+                              nn::BatchMatrix& d_props, const EnvironmentSamples* env) const {
   check(n_rays, props, dirs, sh_basis, env, "backward");
   if (d_props.cols() != prop_cols() || d_radiance.cols() != 3 || d_color.size() < 3 * std::size_t(n_rays))
     throw InvalidArgument("VolumeRenderer::backward: gradient buffers have the wrong shape");

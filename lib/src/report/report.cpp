@@ -61,8 +61,8 @@ void check_image(const ViewResult& v, std::size_t index, const std::vector<float
     const std::size_t k = std::size_t(bad - image.begin()), pixel = k / 3;
     throw InvalidArgument("report: " + label(v, index) + ": the " + what + " has a " +
                           (std::isnan(*bad) ? "NaN" : "infinite value") + " at pixel (x " +
-                          std::to_string(pixel % v.width) + ", y " + std::to_string(pixel / v.width) +
-                          ") channel " + std::to_string(k % 3));
+                          std::to_string(pixel % v.width) + ", y " + std::to_string(pixel / v.width) + ") channel " +
+                          std::to_string(k % 3));
   }
 }
 
@@ -97,9 +97,12 @@ OrderedJson means(const SplitSummary& s) {
 std::string cell(const std::string& s) {
   std::string out;
   for (char c : s) {
-    if (c == '|') out += "\\|";
-    else if (c == '\n' || c == '\r') out += ' ';
-    else out += c;
+    if (c == '|')
+      out += "\\|";
+    else if (c == '\n' || c == '\r')
+      out += ' ';
+    else
+      out += c;
   }
   return out;
 }
@@ -149,11 +152,13 @@ void validate(const std::vector<ViewResult>& views) {
   for (std::size_t i = 0; i < views.size(); ++i) {
     const ViewResult& v = views[i];
     if (!plain_file_name(v.split))
-      throw InvalidArgument("report: " + label(v, i) +
-                            ": the split must be a plain file name (not empty, no '/', '\\', '..' or control characters)");
+      throw InvalidArgument(
+          "report: " + label(v, i) +
+          ": the split must be a plain file name (not empty, no '/', '\\', '..' or control characters)");
     if (!plain_file_name(v.name))
-      throw InvalidArgument("report: " + label(v, i) +
-                            ": the name must be a plain file name (not empty, no '/', '\\', '..' or control characters)");
+      throw InvalidArgument(
+          "report: " + label(v, i) +
+          ": the name must be a plain file name (not empty, no '/', '\\', '..' or control characters)");
     if (!seen.emplace(v.split, v.name).second)
       throw InvalidArgument("report: " + label(v, i) + ": another view of split '" + v.split + "' has the same name");
     check_images(v, i);
@@ -276,8 +281,12 @@ std::string metrics_json(const std::vector<ViewResult>& views, const ReportOptio
   }
   j["views"] = OrderedJson::array();
   for (const auto& v : views)
-    j["views"].push_back({{"split", v.split}, {"name", v.name}, {"width", v.width}, {"height", v.height},
-                          {"psnr", number(v.metrics.psnr)}, {"ssim", number(v.metrics.ssim)},
+    j["views"].push_back({{"split", v.split},
+                          {"name", v.name},
+                          {"width", v.width},
+                          {"height", v.height},
+                          {"psnr", number(v.metrics.psnr)},
+                          {"ssim", number(v.metrics.ssim)},
                           {"mse", number(v.metrics.mse)}});
   return j.dump(2) + "\n";
 }
@@ -301,8 +310,8 @@ std::string metrics_markdown(const std::vector<ViewResult>& views, const ReportO
   md << "## Summary\n\n| split | views | PSNR [dB] | SSIM | MSE |\n|---|---:|---:|---:|---:|\n";
   const auto summaries = summarize(views);
   for (const auto& s : summaries)
-    md << "| " << cell(s.split) << " | " << s.n_views << " | " << fixed(s.psnr, 2) << " | " << fixed(s.ssim, 4)
-       << " | " << scientific(s.mse) << " |\n";
+    md << "| " << cell(s.split) << " | " << s.n_views << " | " << fixed(s.psnr, 2) << " | " << fixed(s.ssim, 4) << " | "
+       << scientific(s.mse) << " |\n";
   const SplitSummary all = overall(views);
   md << "| **mean** | " << all.n_views << " | " << fixed(all.psnr, 2) << " | " << fixed(all.ssim, 4) << " | "
      << scientific(all.mse) << " |\n";
@@ -337,8 +346,8 @@ void write_report(const std::string& dir, const std::vector<ViewResult>& views, 
     std::error_code ec;
     fs::create_directories(p, ec);
     if (ec || !fs::is_directory(p))
-      throw IOError("cannot create the report folder '" + p.string() + "': " +
-                    (ec ? ec.message() : std::string("a file of that name is in the way")));
+      throw IOError("cannot create the report folder '" + p.string() +
+                    "': " + (ec ? ec.message() : std::string("a file of that name is in the way")));
   };
   make_folder(root);
   if (options.write_predictions || options.write_exr) {

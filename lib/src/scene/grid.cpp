@@ -75,10 +75,11 @@ Grid majorant_grid(const Grid& grid, float scale, int block) {
 namespace {
 void check_grid(const Grid& g, int channels, const char* what) {
   if (g.nx < 2 || g.ny < 2 || g.nz < 2 || g.nx > 1024 || g.ny > 1024 || g.nz > 1024)
-    throw InvalidArgument(std::string(what) + " must be between 2 and 1024 voxels per side, got " + std::to_string(g.nx) +
-                          "x" + std::to_string(g.ny) + "x" + std::to_string(g.nz));
+    throw InvalidArgument(std::string(what) + " must be between 2 and 1024 voxels per side, got " +
+                          std::to_string(g.nx) + "x" + std::to_string(g.ny) + "x" + std::to_string(g.nz));
   if (g.channels != channels || g.values.size() != g.voxels() * channels)
-    throw InvalidArgument(std::string(what) + " must have " + std::to_string(channels) + " channel(s) and matching data");
+    throw InvalidArgument(std::string(what) + " must have " + std::to_string(channels) +
+                          " channel(s) and matching data");
   for (float v : g.values)
     if (!std::isfinite(v)) throw InvalidArgument(std::string(what) + " contains NaN or infinite values");
 }
@@ -89,7 +90,8 @@ void Medium::validate() const {
   if (density.min_value() < 0.0f) throw InvalidArgument("the density grid has negative values; densities must be >= 0");
   if (!(density_scale >= 0.0f) || !std::isfinite(density_scale))
     throw InvalidArgument("density_scale must be a finite number >= 0");
-  if (!(g > -1.0f && g < 1.0f)) throw InvalidArgument("the Henyey-Greenstein g must lie in (-1, 1), got " + std::to_string(g));
+  if (!(g > -1.0f && g < 1.0f))
+    throw InvalidArgument("the Henyey-Greenstein g must lie in (-1, 1), got " + std::to_string(g));
   for (float a : albedo)
     if (!(a >= 0.0f && a <= 1.0f)) throw InvalidArgument("albedo values must lie in [0, 1]");
   if (!albedo_grid.empty()) {

@@ -17,13 +17,15 @@ void PointLight::validate() const {
     if (!std::isfinite(p)) throw InvalidArgument("point light position must be finite");
   for (float i : intensity)
     if (!(i >= 0.0f) || !std::isfinite(i))
-      throw InvalidArgument("point light intensity must be finite and >= 0 (W/sr per channel), got " + std::to_string(i));
+      throw InvalidArgument("point light intensity must be finite and >= 0 (W/sr per channel), got " +
+                            std::to_string(i));
 }
 
 EnvironmentLight::EnvironmentLight(Image image, float scale, bool visible, std::string file)
     : m_scale(scale), m_visible(visible), m_file(std::move(file)) {
   if (image.empty() || image.width < 1 || image.height < 1) throw InvalidArgument("the environment image is empty");
-  if (image.width > 16384 || image.height > 8192) throw InvalidArgument("the environment image is larger than 16384x8192");
+  if (image.width > 16384 || image.height > 8192)
+    throw InvalidArgument("the environment image is larger than 16384x8192");
   if (!(scale >= 0.0f) || !std::isfinite(scale)) throw InvalidArgument("environment scale must be finite and >= 0");
   // Keep RGBA so the kernels can read one float4 per texel.
   m_image = Image(image.width, image.height, 4, 0.0f);
@@ -31,7 +33,8 @@ EnvironmentLight::EnvironmentLight(Image image, float scale, bool visible, std::
     for (int x = 0; x < image.width; ++x) {
       for (int c = 0; c < 3; ++c) {
         const float v = image.at(x, y, std::min(c, image.channels - 1));
-        if (!std::isfinite(v) || v < 0) throw InvalidArgument("the environment image has negative, NaN or infinite radiance");
+        if (!std::isfinite(v) || v < 0)
+          throw InvalidArgument("the environment image has negative, NaN or infinite radiance");
         m_image.at(x, y, c) = v;
       }
       m_image.at(x, y, 3) = 1.0f;
@@ -63,7 +66,7 @@ EnvironmentLight EnvironmentLight::sky(int width, int height, unsigned seed, flo
       if (up >= 0) {  // sky: blue at the zenith, pale at the horizon
         const double t = std::pow(1 - up, 3);
         rgb[0] = 0.25 + 0.55 * t, rgb[1] = 0.45 + 0.45 * t, rgb[2] = 0.95 + 0.05 * t;
-      } else {        // ground: dim, warm
+      } else {  // ground: dim, warm
         rgb[0] = 0.18, rgb[1] = 0.15, rgb[2] = 0.12;
       }
       const double glow = std::pow(std::max(cos_sun, 0.0), 64) * 4.0;
@@ -86,7 +89,8 @@ void EnvironmentLight::build_tables() {
       total += f[std::size_t(y) * w + x];
     }
   }
-  if (!(total > 0)) throw InvalidArgument("the environment image is black everywhere; leave the environment out instead");
+  if (!(total > 0))
+    throw InvalidArgument("the environment image is black everywhere; leave the environment out instead");
   m_pdf_uv.resize(f.size());
   m_marginal.assign(h + 1, 0.0f);
   m_conditional.assign(std::size_t(h) * (w + 1), 0.0f);

@@ -51,7 +51,8 @@ double box_fade(double x, double y, double z) {
 }
 
 void check_resolution(int r) {
-  if (r < 8 || r > 512) throw InvalidArgument("procedural grid resolution must lie in [8, 512], got " + std::to_string(r));
+  if (r < 8 || r > 512)
+    throw InvalidArgument("procedural grid resolution must lie in [8, 512], got " + std::to_string(r));
 }
 
 template <class F>

@@ -59,7 +59,8 @@ std::string resolve_path(const std::string& file, const std::string& base_dir) {
 }
 
 // {"type": ..., params}: the density (and possibly albedo) grid of a medium.
-ProceduralMedium read_medium_source(const Json& j, const std::string& ptr, const std::string& base_dir, Json& resolved) {
+ProceduralMedium read_medium_source(const Json& j, const std::string& ptr, const std::string& base_dir,
+                                    Json& resolved) {
   if (!j.is_object()) throw ConfigError(ptr, "the medium source must be an object with a \"type\"");
   const std::string type = config::component_type(j, ptr, "cloud");
   Json body = j;
@@ -96,7 +97,8 @@ ProceduralMedium read_medium_source(const Json& j, const std::string& ptr, const
     // The resolved description must load from anywhere (it is copied next to datasets): absolute path.
     r.set_resolved("file", fs::absolute(resolve_path(file, base_dir)).lexically_normal().string());
   } else {
-    throw ConfigError(ptr + "/type", "unknown medium source type '" + type + "'; valid types: cloud, smoke, blobs, constant, sphere, vdb");
+    throw ConfigError(ptr + "/type", "unknown medium source type '" + type +
+                                         "'; valid types: cloud, smoke, blobs, constant, sphere, vdb");
   }
   r.finish();
   resolved = Json{{"type", type}};
@@ -155,8 +157,9 @@ Scene Scene::from_json(const Json& json, const std::string& base_dir) {
   if (!jm.is_null()) {
     Reader r = reader_for(jm, "/medium", "medium");
     Json src_resolved;
-    ProceduralMedium src = read_medium_source(r.sub("source", Json{{"type", "cloud"}}, "object", "where the density comes from"),
-                                              "/medium/source", base_dir, src_resolved);
+    ProceduralMedium src =
+        read_medium_source(r.sub("source", Json{{"type", "cloud"}}, "object", "where the density comes from"),
+                           "/medium/source", base_dir, src_resolved);
     r.set_resolved("source", src_resolved);
     Medium m;
     m.density = std::move(src.density);
@@ -165,7 +168,8 @@ Scene Scene::from_json(const Json& json, const std::string& base_dir) {
     const bool grid_requested = jm.contains("albedo") && jm["albedo"] == "grid";
     if (grid_requested && !has_grid_albedo)
       r.fail("albedo", "\"grid\" needs a source with an albedo grid (blobs); give [r, g, b] instead");
-    if (grid_requested) r.sub("albedo", "grid", "array", "single-scattering albedo (RGB), or \"grid\" for the source's");
+    if (grid_requested)
+      r.sub("albedo", "grid", "array", "single-scattering albedo (RGB), or \"grid\" for the source's");
     if (!grid_requested && (r.has("albedo") || !has_grid_albedo)) {
       m.albedo = read_vec3(r, "albedo", {0.95f, 0.95f, 0.95f}, 0.0f, 1.0f, "single-scattering albedo (RGB)");
     } else {
@@ -175,7 +179,10 @@ Scene Scene::from_json(const Json& json, const std::string& base_dir) {
     m.g = r.number("g", 0.0f, -1.0f, 1.0f, "Henyey-Greenstein asymmetry in (-1, 1)");
     if (!(m.g > -1.0f && m.g < 1.0f)) r.fail("g", "must lie strictly inside (-1, 1), got " + std::to_string(m.g));
     r.finish();
-    rethrow_as_config("/medium", [&] { m.validate(); return 0; });
+    rethrow_as_config("/medium", [&] {
+      m.validate();
+      return 0;
+    });
     s.medium = std::move(m);
     root.set_resolved("medium", r.resolved());
   }
@@ -191,7 +198,10 @@ Scene Scene::from_json(const Json& json, const std::string& base_dir) {
     surf.base_color = read_vec3(r, "base_color", {0.8f, 0.8f, 0.8f}, 0.0f, 1.0f, "diffuse albedo (RGB)");
     surf.roughness = r.number("roughness", 0.4f, 0.02f, 1.0f, "GGX roughness r (alpha = r^2)");
     r.finish();
-    rethrow_as_config("/solid", [&] { surf.validate(); return 0; });
+    rethrow_as_config("/solid", [&] {
+      surf.validate();
+      return 0;
+    });
     s.solid = std::move(surf);
     root.set_resolved("solid", r.resolved());
   }
@@ -218,11 +228,15 @@ Scene Scene::from_json(const Json& json, const std::string& base_dir) {
     const float scale = r.number("scale", 1.0f, 0.0f, 1e6f, "radiance multiplier");
     const bool visible = r.boolean("visible", false, "whether camera rays that miss everything see it");
     const int count = int(r.has("file")) + int(r.has("radiance")) + int(r.has("sky"));
-    if (count != 1) throw ConfigError("/environment", "give exactly one of \"file\" (lat-long HDR image), \"radiance\" ([r, g, b]) or \"sky\" (seed)");
+    if (count != 1)
+      throw ConfigError(
+          "/environment",
+          "give exactly one of \"file\" (lat-long HDR image), \"radiance\" ([r, g, b]) or \"sky\" (seed)");
     if (r.has("file")) {
       const std::string file = r.string("file", "", "lat-long HDR image (EXR/HDR), relative to the scene file");
       Image img = read_image(resolve_path(file, base_dir));
-      s.environment = rethrow_as_config("/environment", [&] { return EnvironmentLight(std::move(img), scale, visible, file); });
+      s.environment =
+          rethrow_as_config("/environment", [&] { return EnvironmentLight(std::move(img), scale, visible, file); });
     } else if (r.has("radiance")) {
       const Float3 rad = read_vec3(r, "radiance", {1, 1, 1}, 0.0f, 1e6f, "uniform radiance (RGB)");
       Float3 scaled{rad[0] * scale, rad[1] * scale, rad[2] * scale};
@@ -254,7 +268,10 @@ Scene Scene::from_json(const Json& json, const std::string& base_dir) {
       c = Camera::look_at(pos, target, up, angle, w, h);
     }
     r.finish();
-    rethrow_as_config(ptr, [&] { c.validate(); return 0; });
+    rethrow_as_config(ptr, [&] {
+      c.validate();
+      return 0;
+    });
     s.cameras.push_back(c);
     cams_resolved.push_back(r.resolved());
   }
@@ -288,23 +305,36 @@ const std::vector<std::string>& Scene::builtin_names() {
 
 Json Scene::builtin_json(const std::string& name, unsigned seed, int resolution) {
   if (name == "cloud")
-    return {{"medium", {{"source", {{"type", "cloud"}, {"resolution", resolution}, {"seed", seed}}},
-                        {"density_scale", 20.0}, {"albedo", {0.96, 0.96, 0.96}}, {"g", 0.4}}}};
+    return {{"medium",
+             {{"source", {{"type", "cloud"}, {"resolution", resolution}, {"seed", seed}}},
+              {"density_scale", 20.0},
+              {"albedo", {0.96, 0.96, 0.96}},
+              {"g", 0.4}}}};
   if (name == "smoke")
-    return {{"medium", {{"source", {{"type", "smoke"}, {"resolution", resolution}, {"seed", seed}}},
-                        {"density_scale", 30.0}, {"albedo", {0.85, 0.85, 0.85}}, {"g", 0.2}}}};
+    return {{"medium",
+             {{"source", {{"type", "smoke"}, {"resolution", resolution}, {"seed", seed}}},
+              {"density_scale", 30.0},
+              {"albedo", {0.85, 0.85, 0.85}},
+              {"g", 0.2}}}};
   if (name == "blobs")
-    return {{"medium", {{"source", {{"type", "blobs"}, {"resolution", resolution}, {"seed", seed}}},
-                        {"density_scale", 15.0}, {"g", 0.0}}}};
+    return {{"medium",
+             {{"source", {{"type", "blobs"}, {"resolution", resolution}, {"seed", seed}}},
+              {"density_scale", 15.0},
+              {"g", 0.0}}}};
   if (name == "spheres")
-    return {{"solid", {{"source", {{"type", "spheres"}, {"resolution", resolution}, {"seed", seed}}},
-                       {"base_color", {0.75, 0.45, 0.3}}, {"roughness", 0.35}}}};
+    return {{"solid",
+             {{"source", {{"type", "spheres"}, {"resolution", resolution}, {"seed", seed}}},
+              {"base_color", {0.75, 0.45, 0.3}},
+              {"roughness", 0.35}}}};
   if (name == "torus")
-    return {{"solid", {{"source", {{"type", "torus"}, {"resolution", resolution}, {"seed", seed}}},
-                       {"base_color", {0.3, 0.5, 0.8}}, {"roughness", 0.25}}}};
+    return {{"solid",
+             {{"source", {{"type", "torus"}, {"resolution", resolution}, {"seed", seed}}},
+              {"base_color", {0.3, 0.5, 0.8}},
+              {"roughness", 0.25}}}};
   std::string valid;
   for (const auto& n : builtin_names()) valid += (valid.empty() ? "" : ", ") + n;
-  throw InvalidArgument("unknown built-in scene '" + name + "'; valid names: " + valid + ", or a path to a scene .json file");
+  throw InvalidArgument("unknown built-in scene '" + name + "'; valid names: " + valid +
+                        ", or a path to a scene .json file");
 }
 
 Scene Scene::builtin_or_file(const std::string& name_or_path, unsigned seed, int resolution) {

@@ -41,7 +41,8 @@ Grid load_vdb_density(const std::string& path, const std::string& grid_name, int
   std::string listing;
   for (const auto& n : names) listing += (listing.empty() ? "" : ", ") + n;
   if (!grid)
-    throw IOError("OpenVDB file '" + path + "' has no float grid" + (grid_name.empty() ? "" : " named '" + grid_name + "'") +
+    throw IOError("OpenVDB file '" + path + "' has no float grid" +
+                  (grid_name.empty() ? "" : " named '" + grid_name + "'") +
                   "; its grids: " + (listing.empty() ? "none" : listing));
 
   const openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
@@ -65,7 +66,8 @@ Grid load_vdb_density(const std::string& path, const std::string& grid_name, int
         out.at(i, j, k) = v;
         vmax = std::max(vmax, v);
       }
-  if (!(vmax > 0.0f)) throw IOError("OpenVDB grid '" + grid->getName() + "' in '" + path + "' holds no positive density");
+  if (!(vmax > 0.0f))
+    throw IOError("OpenVDB grid '" + grid->getName() + "' in '" + path + "' holds no positive density");
   for (auto& v : out.values) v /= vmax;
   return out;
 }

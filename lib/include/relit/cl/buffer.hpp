@@ -26,12 +26,18 @@ cl::Buffer create_buffer(const Device& device, std::size_t bytes, cl_mem_flags f
 
 template <class T>
 constexpr const char* element_name() {
-  if constexpr (std::is_same_v<T, float>) return "float";
-  else if constexpr (std::is_same_v<T, double>) return "double";
-  else if constexpr (std::is_same_v<T, int>) return "int";
-  else if constexpr (std::is_same_v<T, unsigned>) return "uint";
-  else if constexpr (std::is_same_v<T, unsigned char>) return "uchar";
-  else return "element";
+  if constexpr (std::is_same_v<T, float>)
+    return "float";
+  else if constexpr (std::is_same_v<T, double>)
+    return "double";
+  else if constexpr (std::is_same_v<T, int>)
+    return "int";
+  else if constexpr (std::is_same_v<T, unsigned>)
+    return "uint";
+  else if constexpr (std::is_same_v<T, unsigned char>)
+    return "uchar";
+  else
+    return "element";
 }
 }  // namespace detail
 
@@ -62,7 +68,8 @@ class Buffer {
   void write(const T* data, std::size_t count, std::size_t offset = 0) {
     check_range("write", offset, count);
     if (count)
-      RELIT_CL_CHECK(m_device.queue().enqueueWriteBuffer(m_buffer, CL_TRUE, offset * sizeof(T), count * sizeof(T), data));
+      RELIT_CL_CHECK(
+          m_device.queue().enqueueWriteBuffer(m_buffer, CL_TRUE, offset * sizeof(T), count * sizeof(T), data));
   }
   void write(const std::vector<T>& data, std::size_t offset = 0) { write(data.data(), data.size(), offset); }
 
@@ -92,7 +99,7 @@ class Buffer {
     check_range("copy_from (destination)", dst_offset, count);
     if (count)
       RELIT_CL_CHECK(m_device.queue().enqueueCopyBuffer(src.m_buffer, m_buffer, src_offset * sizeof(T),
-                                                       dst_offset * sizeof(T), count * sizeof(T)));
+                                                        dst_offset * sizeof(T), count * sizeof(T)));
   }
 
   static constexpr std::size_t npos = static_cast<std::size_t>(-1);

@@ -31,9 +31,9 @@ struct DeviceInfo {
   std::string version, driver_version, opencl_c_version;
   unsigned compute_units = 0;
   unsigned max_clock_mhz = 0;
-  std::uint64_t global_memory = 0;   ///< bytes
-  std::uint64_t max_allocation = 0;  ///< largest single buffer, bytes
-  std::uint64_t local_memory = 0;    ///< bytes per work-group
+  std::uint64_t global_memory = 0;      ///< bytes
+  std::uint64_t max_allocation = 0;     ///< largest single buffer, bytes
+  std::uint64_t local_memory = 0;       ///< bytes per work-group
   bool local_memory_is_global = false;  ///< CPU drivers emulate local memory in RAM: no speed-up
   std::size_t max_work_group_size = 0;
   unsigned preferred_vector_width_float = 0;

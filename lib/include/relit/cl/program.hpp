@@ -21,7 +21,10 @@ class Program {
  public:
   Program() = default;
   Program(Device device, cl::Program program, std::string file, std::string options)
-      : m_device(std::move(device)), m_program(std::move(program)), m_file(std::move(file)), m_options(std::move(options)) {}
+      : m_device(std::move(device)),
+        m_program(std::move(program)),
+        m_file(std::move(file)),
+        m_options(std::move(options)) {}
 
   Kernel kernel(const std::string& name) const;
   std::vector<std::string> kernel_names() const;

@@ -58,9 +58,9 @@ class ModelPass {
 
 /// How a pass runs.
 struct PassOptions {
-  bool training = false;        ///< jitter the samples and keep what backward() needs
-  std::uint32_t seed = 0;       ///< the run's seed: draws the per-iteration random directions
-  std::uint32_t iteration = 0;  ///< training step, or tile index when rendering an image
+  bool training = false;          ///< jitter the samples and keep what backward() needs
+  std::uint32_t seed = 0;         ///< the run's seed: draws the per-iteration random directions
+  std::uint32_t iteration = 0;    ///< training step, or tile index when rendering an image
   std::uint32_t jitter_seed = 0;  ///< seeds the sample jitter of this pass (training)
   bool march_visibility = false;  ///< visibility by marching the density grid instead of the network
   /// The environment directions of this pass (EnvironmentSamples::draw()) for a model trained with an

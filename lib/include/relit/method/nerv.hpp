@@ -17,10 +17,10 @@
 namespace relit::method {
 
 struct NeRVSettings {
-  std::uint32_t n_dirs = 128;        ///< K, bounce directions per camera ray in a training step ('point' data)
-  std::uint32_t n_dirs_render = 128; ///< K when rendering images ('point' data)
-  std::uint32_t n_dirs_env = 32;     ///< K under an environment light ('env+point' data)
-  float visibility_fraction = 0.25f; ///< share of rays whose bounce queries also train V_ψ
+  std::uint32_t n_dirs = 128;         ///< K, bounce directions per camera ray in a training step ('point' data)
+  std::uint32_t n_dirs_render = 128;  ///< K when rendering images ('point' data)
+  std::uint32_t n_dirs_env = 32;      ///< K under an environment light ('env+point' data)
+  float visibility_fraction = 0.25f;  ///< share of rays whose bounce queries also train V_ψ
 };
 
 struct NeRVPass : OursPass {

@@ -35,27 +35,29 @@ namespace relit::method {
 /// The environment light of 'env+point' datasets (DESIGN §4.2-4.3): S_env over N_e importance-sampled
 /// directions, each with its own visibility query, and the position-only SH head c_env(x).
 struct EnvironmentSettings {
-  bool enabled = false;                   ///< the model has c_env and trains S_env (relit train sets it from the dataset)
-  std::uint32_t n_dirs = 32;              ///< N_e when rendering under the environment
-  std::uint32_t n_dirs_training = 4;      ///< N_e of a training step (fresh directions every step)
-  float visibility_fraction = 0.0625f;    ///< share of a batch's rays whose samples train V_ψ toward the N_e directions
+  bool enabled = false;                 ///< the model has c_env and trains S_env (relit train sets it from the dataset)
+  std::uint32_t n_dirs = 32;            ///< N_e when rendering under the environment
+  std::uint32_t n_dirs_training = 4;    ///< N_e of a training step (fresh directions every step)
+  float visibility_fraction = 0.0625f;  ///< share of a batch's rays whose samples train V_ψ toward the N_e directions
 };
 
 /// Resolved settings of the model (the non-network keys of the "model" config object).
 struct OursSettings {
   render::RendererSettings renderer;
-  std::uint32_t n_features = 11;          ///< feature columns the property net passes to the SH head
-  float intensity_reference = 1000.0f;    ///< I_ref: the SH head predicts indirect light per I / I_ref
-  float light_position_scale = 0.125f;    ///< the SH head sees the light position times this
-  bool light_conditioned = true;          ///< false: c = c(x), the position-only ablation
-  bool indirect_visibility_input = false; ///< the SH head also sees V(x, ω_l) (indirect.visibility_input)
-  bool indirect_depth_attenuation = false; ///< the SH head's output is multiplied by exp(-k τ) (indirect.optical_depth_attenuation)
-  float indirect_optical_depth = 0.0f;    ///< k > 0: the SH head also sees exp(-k τ(x → p_l)) (indirect.optical_depth_input)
-  float initial_density = 0.6931472f;     ///< σ of the property net at initialisation (softplus of its σ bias)
-  std::uint32_t grid_resolution = 64;     ///< density grid for visibility targets (per axis)
-  std::uint32_t grid_refresh = 16;        ///< refresh the grid every this many training steps
-  std::uint32_t march_steps = 64;         ///< midpoint steps of the visibility-target march
-  float visibility_fraction = 0.25f;      ///< share of a batch's rays whose samples train the visibility net
+  std::uint32_t n_features = 11;           ///< feature columns the property net passes to the SH head
+  float intensity_reference = 1000.0f;     ///< I_ref: the SH head predicts indirect light per I / I_ref
+  float light_position_scale = 0.125f;     ///< the SH head sees the light position times this
+  bool light_conditioned = true;           ///< false: c = c(x), the position-only ablation
+  bool indirect_visibility_input = false;  ///< the SH head also sees V(x, ω_l) (indirect.visibility_input)
+  bool indirect_depth_attenuation =
+      false;  ///< the SH head's output is multiplied by exp(-k τ) (indirect.optical_depth_attenuation)
+  float indirect_optical_depth =
+      0.0f;  ///< k > 0: the SH head also sees exp(-k τ(x → p_l)) (indirect.optical_depth_input)
+  float initial_density = 0.6931472f;            ///< σ of the property net at initialisation (softplus of its σ bias)
+  std::uint32_t grid_resolution = 64;            ///< density grid for visibility targets (per axis)
+  std::uint32_t grid_refresh = 16;               ///< refresh the grid every this many training steps
+  std::uint32_t march_steps = 64;                ///< midpoint steps of the visibility-target march
+  float visibility_fraction = 0.25f;             ///< share of a batch's rays whose samples train the visibility net
   std::string inference_visibility = "network";  ///< "network" (as the paper) or "march" (density grid)
   std::string training_visibility = "network";   ///< V of the training renders: "network" (as the paper) or "march"
   EnvironmentSettings environment;
@@ -119,7 +121,8 @@ class Ours : public Model {
   void forward(OursPass& pass, Buffer<float>& rays, std::uint32_t n_rays, bool training, std::uint32_t seed,
                const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, bool march_visibility = false,
                StageTimer* timer = nullptr, const render::EnvironmentSamples* env = nullptr) const {
-    forward_branch(pass, main_branch(), rays, n_rays, training, seed, dirs, sh_basis, march_visibility, timer, env, true);
+    forward_branch(pass, main_branch(), rays, n_rays, training, seed, dirs, sh_basis, march_visibility, timer, env,
+                   true);
   }
 
   /// Given dL/dcolour (n_rays x 3, rows): writes dL/dθ into grads() (overwriting). The visibility network

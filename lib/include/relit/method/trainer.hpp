@@ -6,9 +6,9 @@
 //   trainer.run(3000, [](const TrainStats& s) { ...; return true; });  // every log_every steps
 //   relit::Image img = relit::method::render_image(trainer.model(), camera, light);
 //
-// A run config is {"method": "ours" | "bi" | "nerv", "model": {...}, "training": {...}}; docs/method.md describes it and
-// docs/config.md lists every key. A step enqueues its work only (no host synchronisation) except at the
-// periodic loss readback (log_every), validation and checkpoints.
+// A run config is {"method": "ours" | "bi" | "nerv", "model": {...}, "training": {...}}; docs/method.md describes it
+// and docs/config.md lists every key. A step enqueues its work only (no host synchronisation) except at the periodic
+// loss readback (log_every), validation and checkpoints.
 #pragma once
 
 #include <relit/method/model.hpp>
@@ -77,22 +77,22 @@ struct TrainingSettings {
   std::uint32_t seed = 0;
   float visibility_loss_weight = 1.0f;
   std::uint32_t log_every = 50;
-  std::uint32_t validate_every = 500;     ///< 0: never
+  std::uint32_t validate_every = 500;  ///< 0: never
   std::uint32_t validation_views = 2;
   std::uint32_t checkpoint_every = 1000;  ///< 0: only at the end of run()
 };
 
 struct TrainStats {
-  std::uint64_t step = 0;        ///< steps taken so far
-  std::uint64_t target = 0;      ///< the step run() is heading for
-  double loss = 0;               ///< render loss of the last step (linear radiance)
-  double visibility_loss = 0;    ///< visibility loss of the last step
+  std::uint64_t step = 0;                                      ///< steps taken so far
+  std::uint64_t target = 0;                                    ///< the step run() is heading for
+  double loss = 0;                                             ///< render loss of the last step (linear radiance)
+  double visibility_loss = 0;                                  ///< visibility loss of the last step
   double val_psnr = std::numeric_limits<double>::quiet_NaN();  ///< last validation PSNR [dB] (NaN before any)
-  double steps_per_second = 0;   ///< over this run() call
-  double elapsed = 0;            ///< seconds of this run() call
-  double eta = 0;                ///< seconds left in this run() call
+  double steps_per_second = 0;                                 ///< over this run() call
+  double elapsed = 0;                                          ///< seconds of this run() call
+  double eta = 0;                                              ///< seconds left in this run() call
   double learning_rate = 0;
-  std::uint64_t skipped = 0;     ///< steps skipped so far because their loss was NaN/Inf
+  std::uint64_t skipped = 0;  ///< steps skipped so far because their loss was NaN/Inf
 };
 
 /// Returns false to stop training (run() then returns after saving nothing more).
@@ -172,8 +172,8 @@ struct RenderSettings {
 
 /// Renders `camera`'s image under `light` with the model: linear RGB (3 channels), in tiles, with progress
 /// counted in rays (pixels x spp).
-Image render_image(const Model& model, const Camera& camera, const PointLight& light, const RenderSettings& settings = {},
-                   const ProgressCallback& progress = {});
+Image render_image(const Model& model, const Camera& camera, const PointLight& light,
+                   const RenderSettings& settings = {}, const ProgressCallback& progress = {});
 
 /// Builds the model stored in a checkpoint (its config and parameters; the dataset is not needed).
 std::unique_ptr<Model> load_model(const Device& device, const std::string& checkpoint_path);

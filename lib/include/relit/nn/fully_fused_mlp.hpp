@@ -102,7 +102,8 @@ class FullyFusedMLP final : public Network {
     /// most this many parameters; 0: never (the separate backward and weight-gradient kernels). For CPUs,
     /// where the accumulators (64 bytes per parameter) must stay in a core's cache.
     std::uint32_t fused_train_max_params = 0;
-    std::uint32_t train_group = 8;  ///< TRAIN_G: tiles per group of the fused training kernel, a multiple of forward_tiles
+    std::uint32_t train_group =
+        8;  ///< TRAIN_G: tiles per group of the fused training kernel, a multiple of forward_tiles
     bool operator==(const Blocking& o) const;
     std::string str() const;  ///< "T2 R8 B8 V16 4x4/16 F16384 G8"
   };

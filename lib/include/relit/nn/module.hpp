@@ -47,7 +47,10 @@ class Encoding : public Module {
   virtual std::uint32_t n_input_dims() const = 0;
   virtual std::uint32_t n_output_dims() const = 0;
 
-  virtual std::unique_ptr<Workspace> make_workspace(const Device& device) const { (void)device; return nullptr; }
+  virtual std::unique_ptr<Workspace> make_workspace(const Device& device) const {
+    (void)device;
+    return nullptr;
+  }
 
   /// Encodes columns [in_col, in_col + n_input_dims) of `input` into columns [out_col, out_col + n_output_dims)
   /// of `output`. The column offsets let a Composite (and the renderer) read its inputs from, and assemble its

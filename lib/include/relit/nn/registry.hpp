@@ -22,7 +22,8 @@ const NetworkRegistry& networks();
 const LossRegistry& losses();
 const OptimizerRegistry& optimizers();
 
-std::unique_ptr<Encoding> create_encoding(const Json& json, std::uint32_t n_input_dims, const std::string& pointer = "");
+std::unique_ptr<Encoding> create_encoding(const Json& json, std::uint32_t n_input_dims,
+                                          const std::string& pointer = "");
 std::unique_ptr<Network> create_network(const Json& json, std::uint32_t n_input_dims, std::uint32_t n_output_dims,
                                         const std::string& pointer = "");
 std::unique_ptr<Loss> create_loss(const Json& json, const std::string& pointer = "");

@@ -1,8 +1,8 @@
 // Camera rays for the neural renderer: random training batches over a set of images, and image tiles.
 //
 // Cameras are relit::Camera (pinhole, camera-to-world in OpenGL/Blender axes: looks down -z, +y up) and
-// lights relit::PointLight, as in scenes and datasets. A training batch draws (image, pixel) pairs uniformly on the device from
-// (seed, iteration, ray), so an iteration needs no host round trip and a run is reproducible.
+// lights relit::PointLight, as in scenes and datasets. A training batch draws (image, pixel) pairs uniformly on the
+// device from (seed, iteration, ray), so an iteration needs no host round trip and a run is reproducible.
 #pragma once
 
 #include <relit/cl/buffer.hpp>

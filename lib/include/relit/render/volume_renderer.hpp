@@ -112,7 +112,7 @@ class VolumeRenderer {
   std::uint32_t m_n_sh;
   bool m_brdf;
   Defines m_defines;
-  std::shared_ptr<nn::Encoding> m_sh;  // evaluates view_basis(); absent without indirect light
+  std::shared_ptr<nn::Encoding> m_sh;   // evaluates view_basis(); absent without indirect light
   mutable nn::BatchMatrix m_view_dirs;  // view_basis() scratch, reused while the ray count does not grow
 };
 

@@ -10,10 +10,10 @@
 namespace relit {
 
 struct Medium {
-  Grid density;                    ///< 1 channel, usually in [0, 1]
-  float density_scale = 1.0f;      ///< multiplies the grid
-  Float3 albedo{0.9f, 0.9f, 0.9f}; ///< used when albedo_grid is empty
-  Grid albedo_grid;                ///< 3 channels, or empty
+  Grid density;                     ///< 1 channel, usually in [0, 1]
+  float density_scale = 1.0f;       ///< multiplies the grid
+  Float3 albedo{0.9f, 0.9f, 0.9f};  ///< used when albedo_grid is empty
+  Grid albedo_grid;                 ///< 3 channels, or empty
   float g = 0.0f;
 
   /// Throws InvalidArgument when a value is out of range (negative density, g outside (-1, 1), ...).

@@ -39,9 +39,11 @@ HashGridEncoding::HashGridEncoding(std::uint32_t n_input_dims, Options o) : m_di
   if (o.n_features_per_level != 1 && o.n_features_per_level != 2 && o.n_features_per_level != 4 &&
       o.n_features_per_level != 8)
     throw InvalidArgument(who + "n_features_per_level must be 1, 2, 4 or 8");
-  if (o.log2_hashmap_size < 10 || o.log2_hashmap_size > 24) throw InvalidArgument(who + "log2_hashmap_size must be in [10, 24]");
+  if (o.log2_hashmap_size < 10 || o.log2_hashmap_size > 24)
+    throw InvalidArgument(who + "log2_hashmap_size must be in [10, 24]");
   if (o.base_resolution < 2) throw InvalidArgument(who + "base_resolution must be at least 2");
-  if (!(o.per_level_scale >= 1.0f && o.per_level_scale <= 8.0f)) throw InvalidArgument(who + "per_level_scale must be in [1, 8]");
+  if (!(o.per_level_scale >= 1.0f && o.per_level_scale <= 8.0f))
+    throw InvalidArgument(who + "per_level_scale must be in [1, 8]");
   if (o.gradient_ranges > 4096) throw InvalidArgument(who + "gradient_ranges must be in [0, 4096]");
 
   const std::uint64_t table = 1ull << o.log2_hashmap_size;
@@ -141,8 +143,8 @@ void HashGridEncoding::backward(const Device& device, ConstParamSlice params, co
     const std::size_t items = m_levels.size() * static_cast<std::size_t>(gradient_ranges(device));
     // One (level, range) per work-group on a CPU, so that the levels spread over the cores.
     const std::size_t local = device.info().type == "cpu" ? 1 : detail::local_size(k);
-    k.args(detail::n_tiles(input), input.batch(), input.data(), input.cols(), in_col, d_output.data(),
-           d_output.cols(), out_col, *grads.buffer, static_cast<std::uint32_t>(grads.offset),
+    k.args(detail::n_tiles(input), input.batch(), input.data(), input.cols(), in_col, d_output.data(), d_output.cols(),
+           out_col, *grads.buffer, static_cast<std::uint32_t>(grads.offset),
            static_cast<std::uint32_t>(accumulate ? 0 : 1))
         .launch(items, local);
   }

@@ -5,7 +5,8 @@
 
 namespace relit::nn {
 
-IdentityEncoding::IdentityEncoding(std::uint32_t n_input_dims, Options options) : m_dims(n_input_dims), m_options(options) {
+IdentityEncoding::IdentityEncoding(std::uint32_t n_input_dims, Options options)
+    : m_dims(n_input_dims), m_options(options) {
   if (n_input_dims == 0) throw InvalidArgument("Identity encoding: n_input_dims must be at least 1");
 }
 
