@@ -12,7 +12,7 @@ venv="${RELIT_VENV:-$root/.venv}"
 
 # One line per job; --no-install-recommends keeps the set to ~0.7 GB instead of ~1.2 GB (Qt, gstreamer...).
 debian_packages=(
-  build-essential cmake ninja-build pkg-config git
+  build-essential cmake ninja-build pkg-config git clang-format  # clang-format: the format test
   ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo   # OpenCL ICD loader, C and C++ headers
   pocl-opencl-icd                                                 # the portable CPU OpenCL driver
   libclblast-dev                                                  # GEMMs and the benchmark peer
