@@ -12,6 +12,8 @@
 #include <relit/dataset.hpp>
 #include <relit/io/file.hpp>
 #include <relit/log.hpp>
+#include <relit/method/presets.hpp>
+#include <relit/method/render_image.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/nn/encodings.hpp>
 #include <relit/nn/optimizer.hpp>

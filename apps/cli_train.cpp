@@ -10,6 +10,9 @@
 #include <relit/io/file.hpp>
 #include <relit/io/image.hpp>
 #include <relit/method/evaluate.hpp>
+#include <relit/method/model_io.hpp>
+#include <relit/method/presets.hpp>
+#include <relit/method/render_image.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/report.hpp>
 
@@ -144,7 +147,7 @@ int run_render(const RenderOptions& o) {
       camera.height = std::max(1, static_cast<int>(std::lround(double(camera.height) * o.resolution / camera.width)));
       camera.width = o.resolution;
     }
-    if (model->has_environment()) environment = method::dataset_environment(o.view.substr(0, b));
+    if (model->has_environment()) environment = dataset_environment(o.view.substr(0, b));
   } else {
     const auto e = triple(o.eye, "--eye"), t = triple(o.target, "--target");
     const int res = o.resolution > 0 ? o.resolution : 128;

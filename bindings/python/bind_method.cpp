@@ -11,6 +11,9 @@
 #include "bindings.hpp"
 #include "convert.hpp"
 
+#include <relit/method/model_io.hpp>
+#include <relit/method/presets.hpp>
+#include <relit/method/render_image.hpp>
 #include <relit/method/trainer.hpp>
 
 #include <algorithm>
@@ -92,7 +95,7 @@ void bind_method(py::module_& m) {
       .def_static(
           "from_dataset",
           [](const std::string& dataset) {
-            auto env = method::dataset_environment(dataset);
+            auto env = dataset_environment(dataset);
             if (!env) throw InvalidArgument("dataset " + dataset + " has no environment light ('point' lighting)");
             return std::make_shared<EnvironmentLight>(*env);
           },

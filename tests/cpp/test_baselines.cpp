@@ -6,6 +6,9 @@
 #include <relit/dataset.hpp>
 #include <relit/method/bi.hpp>
 #include <relit/method/nerv.hpp>
+#include <relit/method/model_io.hpp>
+#include <relit/method/presets.hpp>
+#include <relit/method/render_image.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/metrics.hpp>
 #include <relit/render/rays.hpp>
@@ -640,7 +643,7 @@ TEST_P(MethodsTrain, TrainsToAStatedPsnrAndReloadsIdentically) {
   method::Trainer t(dev, ds, tiny_config(method));
   EXPECT_EQ(t.model().method(), method);
   // PSNR on two training views (what a short training fits; six views do not pin down novel lights).
-  const auto views = method::load_split(ds, "train", 2);
+  const auto views = load_split(ds, "train", 2);
   auto fit_psnr = [&] {
     double sum = 0;
     for (std::size_t i = 0; i < views.size(); ++i) {

@@ -3,6 +3,7 @@
 
 #include <relit/dataset.hpp>
 #include <relit/io/file.hpp>
+#include <relit/io/image.hpp>
 
 #include <cmath>
 #include <fstream>
@@ -114,6 +115,57 @@ TEST(Dataset, RoundTripGivesIdenticalCamerasLightsAndPixels) {
   int entries = 0;
   for (const auto& e : fs::directory_iterator(dir.path())) entries += 1, (void)e;
   EXPECT_EQ(entries, 1);
+}
+
+TEST(Dataset, LoadSplitReadsTheViewsBackAndNamesWhatIsWrong) {
+  test::TempDir dir("dataset");
+  DatasetSettings s = tiny();
+  s.train = 4;
+  const std::string out = (dir.path() / "ds").string();
+  generate_dataset(test::test_device(), tiny_scene(), out, s);
+  const DatasetDescription desc = read_dataset(out);
+  const DatasetSplit train = load_split(out, "train");
+  ASSERT_EQ(train.size(), 4u);
+  EXPECT_EQ(train.split, "train");
+  EXPECT_EQ(train.width, s.resolution);
+  EXPECT_EQ(train.height, s.resolution);
+  EXPECT_EQ(train.environment, nullptr);
+  ASSERT_EQ(train.images.size(), 4u * s.resolution * s.resolution * 3);
+  for (std::size_t i = 0; i < train.size(); ++i) {
+    const DatasetFrame& f = desc.splits.at("train")[i];
+    EXPECT_EQ(train.names[i], fs::path(f.file_path).stem().string());
+    EXPECT_EQ(train.cameras[i].transform, f.camera.transform);
+    EXPECT_EQ(train.lights[i].position, f.light.position);
+    // The RGB of the stored RGBA image, bit for bit.
+    const Image img = read_image((fs::path(out) / f.file_path).string());
+    const std::vector<float> rgb = train.image(i);
+    ASSERT_EQ(rgb.size(), std::size_t(s.resolution) * s.resolution * 3);
+    for (std::size_t p = 0; p < rgb.size() / 3; ++p)
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(rgb[p * 3 + c], img.pixels[p * 4 + c]) << i << " " << p;
+  }
+  // max_views keeps views spread evenly over the split: 0 and 2 of 4.
+  const DatasetSplit two = load_split(out, "train", 2);
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two.names[0], train.names[0]);
+  EXPECT_EQ(two.names[1], train.names[2]);
+  // A missing split names the splits there are; a non-finite pixel names its file.
+  try {
+    load_split(out, "test_distance_3");
+    FAIL() << "a missing split must throw";
+  } catch (const IOError& e) {
+    EXPECT_NE(std::string(e.what()).find("splits: test, train, val"), std::string::npos) << e.what();
+  }
+  const fs::path view = fs::path(out) / desc.splits.at("val")[0].file_path;
+  Image bad = read_image(view.string());
+  bad.pixels[5] = std::nanf("");
+  write_image(view.string(), bad);
+  try {
+    load_split(out, "val");
+    FAIL() << "a NaN pixel must throw";
+  } catch (const IOError& e) {
+    EXPECT_NE(std::string(e.what()).find(view.filename().string()), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("NaN"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Dataset, EnvPlusPointWritesTheEnvironmentMap) {

@@ -6,6 +6,9 @@
 #include <relit/io/checkpoint.hpp>
 #include <relit/io/file.hpp>
 #include <relit/method/evaluate.hpp>
+#include <relit/method/model_io.hpp>
+#include <relit/method/presets.hpp>
+#include <relit/method/render_image.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/nn/registry.hpp>
 #include <relit/render/rays.hpp>
@@ -650,7 +653,7 @@ TEST_F(MethodTrainer, EnvPointDatasetsTrainTheEnvironmentPartsAndResume) {
   EXPECT_EQ(resumed.model().vis_params().read(), straight.model().vis_params().read());
 
   // Evaluation renders the test views under the environment (the split carries it).
-  const auto split = method::load_split(ds, "test");
+  const auto split = load_split(ds, "test");
   ASSERT_NE(split.environment, nullptr);
   EXPECT_TRUE(split.environment->visible());
   method::RenderSettings lit, dark;

@@ -15,6 +15,9 @@
 // are novel. Writing is atomic: everything goes to a temporary sibling folder that is renamed into place at
 // the very end, so an interrupted run never leaves a dataset that looks complete, and an existing folder is
 // only replaced when `overwrite` is set.
+//
+// Reading: read_dataset gives the transforms files back (cameras, lights, file paths), load_split a split with
+// its images for training and evaluation.
 #pragma once
 
 #include <relit/cl/device.hpp>
@@ -23,6 +26,7 @@
 #include <relit/scene/scene.hpp>
 
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -77,5 +81,27 @@ std::uint32_t dataset_view_seed(std::uint32_t seed, const std::string& split, st
 
 /// Reads the transforms files of a dataset folder back (cameras, lights, file paths).
 DatasetDescription read_dataset(const std::string& dir);
+
+/// One split of a dataset on the host: cameras, lights and linear RGB images (n x h x w x 3).
+struct DatasetSplit {
+  std::string split;
+  std::vector<std::string> names;  ///< file stems ("r_012")
+  std::vector<Camera> cameras;
+  std::vector<PointLight> lights;
+  std::vector<float> images;
+  int width = 0, height = 0;
+  /// The environment light of an 'env+point' dataset (every view is lit by it as well), or null.
+  std::shared_ptr<const EnvironmentLight> environment;
+  std::size_t size() const { return cameras.size(); }
+  /// View i's image (h x w x 3).
+  std::vector<float> image(std::size_t i) const;
+};
+
+/// Reads a split of a dataset folder (docs/dataset-format.md). `max_views` > 0 keeps that many views,
+/// spread evenly over the split. Throws IOError naming the folder/file when something is missing or corrupt.
+DatasetSplit load_split(const std::string& dataset_dir, const std::string& split, std::size_t max_views = 0);
+
+/// The environment light of an 'env+point' dataset folder, or null for 'point' data.
+std::shared_ptr<const EnvironmentLight> dataset_environment(const std::string& dataset_dir);
 
 }  // namespace relit

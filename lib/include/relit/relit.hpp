@@ -17,6 +17,9 @@
 #include <relit/method/bi.hpp>
 #include <relit/method/nerv.hpp>
 #include <relit/method/evaluate.hpp>
+#include <relit/method/model_io.hpp>
+#include <relit/method/presets.hpp>
+#include <relit/method/render_image.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/metrics.hpp>
 #include <relit/nn/batch.hpp>

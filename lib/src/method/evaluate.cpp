@@ -1,6 +1,8 @@
 // relit eval: render the test views, compare, write the report (relit/report.hpp).
 #include <relit/method/evaluate.hpp>
-#include <relit/method/trainer.hpp>
+#include <relit/dataset.hpp>
+#include <relit/method/render_image.hpp>
+#include <relit/metrics.hpp>
 
 #include <cstdint>
 

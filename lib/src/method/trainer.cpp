@@ -1,159 +1,22 @@
-// Training, checkpoints and relighting of every method (Ours and the baselines).
+// Training of every method (Ours and the baselines): the step, its schedule (validation, logs, checkpoints),
+// and resuming from a checkpoint.
 #include <relit/cl/program.hpp>
-#include <relit/dataset.hpp>
-#include <relit/io/checkpoint.hpp>
 #include <relit/io/file.hpp>
 #include <relit/log.hpp>
+#include <relit/method/model_io.hpp>
+#include <relit/method/render_image.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/metrics.hpp>
 #include <relit/nn/registry.hpp>
-#include <relit/version.hpp>
 
-#include "embedded_files.hpp"
-
-#include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 
 namespace fs = std::filesystem;
 
 namespace relit::method {
-
-// ---- presets and configs -----------------------------------------------------------------------------------
-
-std::vector<std::string> preset_names() {
-  std::vector<std::string> names;
-  for (const auto& f : detail::embedded_presets()) {
-    std::string n = f.name;
-    names.push_back(n.substr(0, n.size() - 5));  // drop ".json"
-  }
-  return names;
-}
-
-namespace {
-Json parse_json(const std::string& text, const std::string& where) {
-  try {
-    return Json::parse(text);
-  } catch (const Json::parse_error& e) {
-    throw ConfigError("", where + ": not valid JSON: " + e.what());
-  }
-}
-
-std::string join(const std::vector<std::string>& v) {
-  std::string out;
-  for (const auto& s : v) out += (out.empty() ? "" : ", ") + s;
-  return out;
-}
-}  // namespace
-
-Json preset(const std::string& name) {
-  for (const auto& f : detail::embedded_presets())
-    if (name + ".json" == f.name) return parse_json(f.text, "preset '" + name + "'");
-  throw InvalidArgument("unknown preset '" + name + "'; presets: " + join(preset_names()) + " (or give a .json file)");
-}
-
-Json load_run_config(const std::string& spec) {
-  const auto names = preset_names();
-  if (std::find(names.begin(), names.end(), spec) != names.end()) return preset(spec);
-  if (!fs::exists(spec))
-    throw IOError("config '" + spec + "' is neither a preset (" + join(names) + ") nor an existing file");
-  return parse_json(io::read_file(spec), spec);
-}
-
-std::string config_for_method(const std::string& spec, const std::string& method) {
-  if (method.empty()) return spec;
-  const auto methods = method_names();
-  if (std::find(methods.begin(), methods.end(), method) == methods.end())
-    throw InvalidArgument("unknown method '" + method + "'; methods: " + join(methods));
-  if (method == "ours" || (spec != "fast" && spec != "paper")) return spec;
-  return method + "-" + spec;
-}
-
-void set_method(Json& config, const std::string& method, const std::string& source) {
-  if (method.empty()) return;
-  config_for_method("fast", method);  // an unknown method is an error naming the valid ones
-  if (config.contains("method") && config["method"] != method)
-    throw ConfigError("/method",
-                      "is " + config["method"].dump() + " in " + source + " but the method asked for is " + method);
-  config["method"] = method;
-}
-
-// ---- datasets ----------------------------------------------------------------------------------------------
-
-std::vector<float> DatasetSplit::image(std::size_t i) const {
-  const std::size_t n = std::size_t(width) * height * 3;
-  return std::vector<float>(images.begin() + i * n, images.begin() + (i + 1) * n);
-}
-
-namespace {
-// The "environment" entry of a transforms file: null, or {file, scale, visible} (docs/dataset-format.md).
-std::shared_ptr<const EnvironmentLight> load_environment(const std::string& dataset_dir, const std::string& file,
-                                                         const Json& env) {
-  if (env.is_null()) return nullptr;
-  const std::string where = (fs::path(dataset_dir) / file).string() + ": environment";
-  if (!env.is_object() || !env.contains("file") || !env["file"].is_string())
-    throw IOError(where + " must be null or {\"file\": ..., \"scale\": ..., \"visible\": ...}, got " + env.dump());
-  const Json scale = env.value("scale", Json(1.0));
-  const Json visible = env.value("visible", Json(false));
-  if (!scale.is_number() || !std::isfinite(scale.get<double>()) || scale.get<double>() < 0)
-    throw IOError(where + "/scale must be a finite number >= 0, got " + scale.dump());
-  if (!visible.is_boolean()) throw IOError(where + "/visible must be true or false, got " + visible.dump());
-  const std::string path = (fs::path(dataset_dir) / env["file"].get<std::string>()).string();
-  return std::make_shared<const EnvironmentLight>(read_image(path), scale.get<float>(), visible.get<bool>(), path);
-}
-}  // namespace
-
-DatasetSplit load_split(const std::string& dataset_dir, const std::string& split, std::size_t max_views) {
-  const DatasetDescription desc = read_dataset(dataset_dir);
-  auto it = desc.splits.find(split);
-  if (it == desc.splits.end() || it->second.empty()) {
-    std::vector<std::string> have;
-    for (const auto& [k, v] : desc.splits) have.push_back(k);
-    throw IOError("dataset " + dataset_dir + " has no '" + split + "' views (splits: " + join(have) + ")");
-  }
-  const auto& frames = it->second;
-  std::vector<std::size_t> picks;
-  const std::size_t n = max_views && max_views < frames.size() ? max_views : frames.size();
-  for (std::size_t k = 0; k < n; ++k) picks.push_back(k * frames.size() / n);
-  DatasetSplit out;
-  out.split = split;
-  for (std::size_t k : picks) {
-    const auto& f = frames[k];
-    const std::string path = (fs::path(dataset_dir) / f.file_path).string();
-    const Image img = read_image(path);
-    if (img.channels < 3)
-      throw IOError(path + ": expected an RGB(A) image, it has " + std::to_string(img.channels) + " channels");
-    if (img.width != f.camera.width || img.height != f.camera.height)
-      throw IOError(path + ": the image is " + std::to_string(img.width) + "x" + std::to_string(img.height) +
-                    " but its camera says " + std::to_string(f.camera.width) + "x" + std::to_string(f.camera.height));
-    if (out.cameras.empty()) {
-      out.width = img.width;
-      out.height = img.height;
-    } else if (img.width != out.width || img.height != out.height) {
-      throw IOError(path + ": all images of a split must have the same size");
-    }
-    for (std::size_t p = 0; p < std::size_t(img.width) * img.height; ++p)
-      for (int c = 0; c < 3; ++c) {
-        const float v = img.pixels[p * img.channels + c];
-        if (!std::isfinite(v)) throw IOError(path + ": pixel " + std::to_string(p) + " is not finite");
-        out.images.push_back(v);
-      }
-    out.names.push_back(fs::path(f.file_path).stem().string());
-    out.cameras.push_back(f.camera);
-    out.lights.push_back(f.light);
-  }
-  out.environment = load_environment(dataset_dir, "transforms_" + split + ".json", desc.environment);
-  return out;
-}
-
-std::shared_ptr<const EnvironmentLight> dataset_environment(const std::string& dataset_dir) {
-  return load_environment(dataset_dir, "transforms_*.json", read_dataset(dataset_dir).environment);
-}
-
-// ---- trainer -----------------------------------------------------------------------------------------------
 
 namespace {
 
@@ -437,29 +300,15 @@ std::vector<std::pair<std::string, double>> Trainer::profile(std::uint32_t n) {
 
 // ---- checkpoints -------------------------------------------------------------------------------------------
 
-namespace {
-void put(io::Checkpoint& c, const std::string& name, const Buffer<float>& b) { c.tensors[name] = b.read(); }
-void get(const io::Checkpoint& c, const std::string& name, Buffer<float>& b, const std::string& path) {
-  auto it = c.tensors.find(name);
-  if (it == c.tensors.end()) throw IOError(path + ": checkpoint has no tensor '" + name + "'");
-  if (it->second.size() != b.size())
-    throw IOError(path + ": tensor '" + name + "' has " + std::to_string(it->second.size()) +
-                  " values, the model needs " + std::to_string(b.size()) + " (a checkpoint of another config?)");
-  b.write(it->second);
-}
-}  // namespace
-
 void Trainer::save_checkpoint(const std::string& path) const {
   io::Checkpoint c;
   c.header["kind"] = "relit run";
   c.header["config"] = m_config;
   c.header["step"] = m_step;
   c.header["val_psnr"] = std::isnan(m_val_psnr) ? Json() : Json(m_val_psnr);
-  put(c, "theta", m_model->params());
-  put(c, "psi", m_model->vis_params());
-  put(c, "density_grid", m_model->density_grid().sigma);
-  for (auto& [name, buf] : m_optimizer->state_buffers()) put(c, "optimizer/" + name, *buf);
-  for (auto& [name, buf] : m_vis_optimizer->state_buffers()) put(c, "visibility_optimizer/" + name, *buf);
+  put_model(c, *m_model);
+  for (auto& [name, buf] : m_optimizer->state_buffers()) put_tensor(c, "optimizer/" + name, *buf);
+  for (auto& [name, buf] : m_vis_optimizer->state_buffers()) put_tensor(c, "visibility_optimizer/" + name, *buf);
   c.tensors["skipped"] = {float(m_skipped.read()[0])};
   io::save_checkpoint(path, c);
 }
@@ -477,11 +326,9 @@ void Trainer::load_checkpoint(const std::string& path) {
                           ": the checkpoint was written with another config; resume with the run's own "
                           "config.json (diff: " +
                           Json::diff(ours, theirs).dump() + ")");
-  get(c, "theta", m_model->params(), path);
-  get(c, "psi", m_model->vis_params(), path);
-  get(c, "density_grid", m_model->density_grid().sigma, path);
-  for (auto& [name, buf] : m_optimizer->state_buffers()) get(c, "optimizer/" + name, *buf, path);
-  for (auto& [name, buf] : m_vis_optimizer->state_buffers()) get(c, "visibility_optimizer/" + name, *buf, path);
+  get_model(c, *m_model, path);
+  for (auto& [name, buf] : m_optimizer->state_buffers()) get_tensor(c, "optimizer/" + name, *buf, path);
+  for (auto& [name, buf] : m_vis_optimizer->state_buffers()) get_tensor(c, "visibility_optimizer/" + name, *buf, path);
   m_step = c.header.at("step").get<std::uint64_t>();
   m_optimizer->set_step_count(m_step);
   m_vis_optimizer->set_step_count(m_step);
@@ -489,76 +336,6 @@ void Trainer::load_checkpoint(const std::string& path) {
   m_skipped.fill(sk == c.tensors.end() ? 0u : static_cast<std::uint32_t>(sk->second.at(0)));
   const Json& v = c.header.value("val_psnr", Json());
   m_val_psnr = v.is_number() ? v.get<double>() : std::numeric_limits<double>::quiet_NaN();
-}
-
-std::unique_ptr<Model> load_model(const Device& device, const std::string& path) {
-  const io::Checkpoint c = io::load_checkpoint(path);
-  if (!c.header.contains("config") || !c.header["config"].contains("model"))
-    throw IOError(path + ": not a relit run checkpoint (no model config in its header)");
-  const std::string method = c.header["config"].value("method", "ours");
-  auto model = create_model(device, method, c.header["config"]["model"], "/model");
-  get(c, "theta", model->params(), path);
-  get(c, "psi", model->vis_params(), path);
-  get(c, "density_grid", model->density_grid().sigma, path);
-  return model;
-}
-
-// ---- relighting --------------------------------------------------------------------------------------------
-
-Image render_image(const Model& model, const Camera& camera, const PointLight& light, const RenderSettings& settings,
-                   const ProgressCallback& progress) {
-  camera.validate();
-  light.validate();
-  if (settings.tile_rays == 0) throw InvalidArgument("render_image: tile_rays must be positive");
-  const std::uint32_t spp = settings.spp;
-  std::vector<std::array<float, 2>> offsets{render::pixel_sample_offset(spp, 0)};  // throws unless spp is a square
-  for (std::uint32_t s = 1; s < spp; ++s) offsets.push_back(render::pixel_sample_offset(spp, s));
-  const std::string vis = settings.visibility.empty() ? model.inference_visibility() : settings.visibility;
-  if (vis != "network" && vis != "march")
-    throw InvalidArgument("render_image: visibility must be \"network\" or \"march\", got \"" + vis + "\"");
-  const Device& device = model.device();
-  const std::uint32_t total = static_cast<std::uint32_t>(camera.width) * camera.height;
-  std::uint32_t tile = std::min(settings.tile_rays, total);
-  std::unique_ptr<render::EnvironmentSamples> env;
-  if (settings.environment) {
-    if (!model.has_environment())
-      throw InvalidArgument(
-          "render_image: the model was trained without an environment light; render it under "
-          "its point light alone (no environment)");
-    env = std::make_unique<render::EnvironmentSamples>(device, *settings.environment, model.env_dirs());
-  }
-  // Keep a tile's network queries near 2^19 (N_e visibility queries per sample with an environment, ...).
-  tile = std::min(tile, std::max<std::uint32_t>(16, (1u << 19) / model.queries_per_ray()));
-  const auto pass = model.make_pass();
-  Buffer<float> rays(device, std::size_t(tile) * render::kRayFloats);
-  Image out(camera.width, camera.height, 3);
-  std::vector<float> sample(std::size_t(tile) * 3);
-  const render::ImageRays image_rays(device, camera, light);
-  ProgressTracker tracker(progress, std::uint64_t(total) * spp, "rays");
-  for (std::uint32_t first = 0, k = 0; first < total; first += tile, ++k) {
-    const std::uint32_t n = std::min(tile, total - first);
-    float* dst = out.pixels.data() + std::size_t(first) * 3;
-    for (std::uint32_t s = 0; s < spp; ++s) {
-      const std::uint32_t iteration = k * spp + s;  // spp 1: the tile's index
-      image_rays(first, n, rays, offsets[s]);
-      if (env) {
-        env->draw(settings.seed, iteration);
-        env->fill_background(rays, n);
-      }
-      PassOptions o;
-      o.seed = settings.seed;
-      o.iteration = iteration;
-      o.jitter_seed = settings.seed;
-      o.march_visibility = vis == "march";
-      o.env = env.get();
-      model.render(*pass, rays, n, o);
-      model.color(*pass, model.n_colors() - 1).read(sample.data(), 3 * std::size_t(n));
-      for (std::size_t i = 0; i < 3 * std::size_t(n); ++i) dst[i] += sample[i];  // out starts at 0
-      tracker.update(std::uint64_t(first) * spp + std::uint64_t(n) * (s + 1));
-    }
-    for (std::size_t i = 0; i < 3 * std::size_t(n); ++i) dst[i] /= static_cast<float>(spp);
-  }
-  return out;
 }
 
 }  // namespace relit::method

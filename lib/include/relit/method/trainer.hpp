@@ -1,6 +1,8 @@
-// Training and relighting with the "Ours" model (DESIGN §4.3, §7).
+// Training of every method (Ours and the baselines): steps, validation, logs, checkpoints and resuming
+// (DESIGN §4.3, §7). Presets are in presets.hpp, relighting a trained model in render_image.hpp, loading one
+// from a checkpoint in model_io.hpp, the dataset reader in relit/dataset.hpp.
 //
-//   auto config = relit::method::preset("fast");                       // or a JSON file's contents
+//   auto config = relit::method::preset("fast");                       // presets.hpp; or a JSON file's contents
 //   relit::method::Trainer trainer(device, "data/cloud", config);
 //   trainer.set_output("runs/cloud");                                  // config.json, log.jsonl, checkpoints
 //   trainer.run(3000, [](const TrainStats& s) { ...; return true; });  // every log_every steps
@@ -11,16 +13,14 @@
 // loss readback (log_every), validation and checkpoints.
 #pragma once
 
+#include <relit/dataset.hpp>
 #include <relit/method/model.hpp>
 #include <relit/render/volume_renderer.hpp>
 #include <relit/render/environment.hpp>
-#include <relit/io/image.hpp>
 #include <relit/nn/loss.hpp>
 #include <relit/nn/optimizer.hpp>
 #include <relit/progress.hpp>
 #include <relit/render/rays.hpp>
-#include <relit/scene/camera.hpp>
-#include <relit/scene/light.hpp>
 
 #include <functional>
 #include <limits>
@@ -31,44 +31,8 @@
 
 namespace relit::method {
 
-/// The names of the preset configs ("fast", "paper", and per baseline "bi-fast", "nerv-paper", ...).
-std::vector<std::string> preset_names();
-/// A preset run config by name; throws InvalidArgument listing the presets for an unknown name.
-Json preset(const std::string& name);
-/// The preset or file to load for `spec` and a method: with a preset name ("fast", "paper") and a baseline
-/// method ("bi", "nerv"), that method's preset ("bi-fast"); otherwise `spec` itself. Throws InvalidArgument
-/// for an unknown method.
-std::string config_for_method(const std::string& spec, const std::string& method);
-/// Sets a run config's "method" to `method` (nothing when empty): a config that names another method is a
-/// ConfigError naming `source` (where the config came from), an unknown method an InvalidArgument.
-void set_method(Json& config, const std::string& method, const std::string& source);
-/// `spec` is a preset name or the path of a JSON file; throws ConfigError/IOError naming the file on errors.
-Json load_run_config(const std::string& spec);
-
 /// Every key of a run config, object by object (the "Run config" part of docs/config.md).
 config::Docs run_config_docs();
-
-/// One split of a dataset on the host: cameras, lights and linear RGB images (n x h x w x 3).
-struct DatasetSplit {
-  std::string split;
-  std::vector<std::string> names;  ///< file stems ("r_012")
-  std::vector<Camera> cameras;
-  std::vector<PointLight> lights;
-  std::vector<float> images;
-  int width = 0, height = 0;
-  /// The environment light of an 'env+point' dataset (every view is lit by it as well), or null.
-  std::shared_ptr<const EnvironmentLight> environment;
-  std::size_t size() const { return cameras.size(); }
-  /// View i's image (h x w x 3).
-  std::vector<float> image(std::size_t i) const;
-};
-
-/// Reads a split of a dataset folder (docs/dataset-format.md). `max_views` > 0 keeps that many views,
-/// spread evenly over the split. Throws IOError naming the folder/file when something is missing or corrupt.
-DatasetSplit load_split(const std::string& dataset_dir, const std::string& split, std::size_t max_views = 0);
-
-/// The environment light of an 'env+point' dataset folder, or null for 'point' data.
-std::shared_ptr<const EnvironmentLight> dataset_environment(const std::string& dataset_dir);
 
 /// The non-model keys of a run config's "training" object.
 struct TrainingSettings {
@@ -156,26 +120,5 @@ class Trainer {
   double m_val_psnr = std::numeric_limits<double>::quiet_NaN();
   StageTimer m_timer;
 };
-
-struct RenderSettings {
-  std::uint32_t tile_rays = 1024;  ///< rays per pass (small tiles stay in cache)
-  std::uint32_t seed = 0;          ///< draws the indirect directions
-  /// Rays per pixel, averaged: an n x n grid in each pixel (a box filter, as the path tracer's references;
-  /// anti-aliases the medium's edges). A square: 1, 4, 9, 16, ... Each sample draws its own indirect directions.
-  std::uint32_t spp = 1;
-  /// "" uses the model's inference_visibility setting; "network" or "march" override it.
-  std::string visibility;
-  /// Light the scene with this environment map as well (a model trained on 'env+point' data; it is sampled
-  /// in model/environment/n_dirs directions). Null: the point light alone.
-  const EnvironmentLight* environment = nullptr;
-};
-
-/// Renders `camera`'s image under `light` with the model: linear RGB (3 channels), in tiles, with progress
-/// counted in rays (pixels x spp).
-Image render_image(const Model& model, const Camera& camera, const PointLight& light,
-                   const RenderSettings& settings = {}, const ProgressCallback& progress = {});
-
-/// Builds the model stored in a checkpoint (its config and parameters; the dataset is not needed).
-std::unique_ptr<Model> load_model(const Device& device, const std::string& checkpoint_path);
 
 }  // namespace relit::method

@@ -1,4 +1,5 @@
-// Generates docs/config.md from the component registries.
+// Generates docs/config.md from every component registry (nn) and the run config of every method: it sits at
+// the top of the stack, above everything it documents (the config reader it reports from is at the bottom).
 #include <relit/config_reference.hpp>
 #include <relit/method/trainer.hpp>
 #include <relit/nn/registry.hpp>
