@@ -67,7 +67,8 @@ SCALES = {
     # The numbers of docs/results.md: a 2-core CPU in about an hour per experiment.
     "laptop": {"resolution": 64, "scene_resolution": 64, "train": 60, "val": 4, "test": 20, "spp": 64, "test_spp": 256,
                "generalization_views": 10, "steps": 2000, "batch_rays": 1200, "preset": "fast", "model": {}},
-    # The seed's protocol on a GPU: 128x128, 100 training views, the paper-sized networks.
+    # The protocol of the paper (Zheng, Singh, Seidel, NeurIPS 2021) on a GPU: 128x128, 100 training views, the
+    # paper-sized networks.
     "gpu": {"resolution": 128, "scene_resolution": 64, "train": 100, "val": 20, "test": 50, "spp": 64,
             "test_spp": 256, "generalization_views": 20, "steps": 30000, "batch_rays": 1200, "preset": "paper",
             "model": {}},

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Method comparison (seed Tables 1-3, appendices D, F, G): Bi et al. vs NeRV vs Ours on participating media under
-'point' and 'env + point' training light, and Bi et al. vs NeRV vs Ours + BRDF vs Ours on glossy solids; every
-method trained on the same dataset for the same steps and tested on novel views under novel point lights.
+"""Method comparison (Zheng, Singh, Seidel, NeurIPS 2021: Tables 1-3, appendices D, F, G): Bi et al. vs NeRV vs Ours
+on participating media under 'point' and 'env + point' training light, and Bi et al. vs NeRV vs Ours + BRDF vs
+Ours on glossy solids; every method trained on the same dataset for the same steps and tested on novel views
+under novel point lights.
 
     python bench/paper/comparison.py --scale laptop --out results/comparison
     python bench/paper/comparison.py --scale laptop --part media --scenes cloud
@@ -89,7 +90,7 @@ def main():
     if names:
         common.plot(os.path.join(args.out, "comparison.png"), "Methods (test views, novel lights)", "dataset", series,
                     xticks=names)
-    notes = ["Orderings of the seed (PSNR): " + (", ".join("%s %s" % (k, "holds" if v else "does not hold")
+    notes = ["Orderings of the paper (PSNR): " + (", ".join("%s %s" % (k, "holds" if v else "does not hold")
                                                            for k, v in checks.items()) or "none checked") + ".",
              "", "![PSNR per dataset and method](comparison.png)"]
     r.write_results("Method comparison", results, tables + [notes])

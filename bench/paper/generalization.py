@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Generalisation over light distance and intensity (seed appendix H, Figs. 2-3).
+"""Generalisation over light distance and intensity (Zheng, Singh, Seidel, NeurIPS 2021: appendix H, Figs. 2-3).
 
 - Distance: train with the point light at distances stratified in (3, 5), test at 3, 5, 7 and 10 (intensity 600).
 - Intensity: train with intensities stratified in [50, 900], test at 400, 800, 1200 and 1600 (distance 4).

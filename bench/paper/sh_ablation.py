@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""SH-band ablation (seed Fig. 1, main paper Fig. 9): the "Ours" model without indirect light and with SH bands
-l_max = 1, 3, 5, 7, 9, trained on the same 'point' cloud dataset for the same steps, tested on novel views
-under novel lights.
+"""SH-band ablation (Zheng, Singh, Seidel, NeurIPS 2021: appendix E, Fig. 1, and main paper Fig. 9): the "Ours"
+model without indirect light and with SH bands l_max = 1, 3, 5, 7, 9, trained on the same 'point' cloud dataset
+for the same steps, tested on novel views under novel lights.
 
     python bench/paper/sh_ablation.py --scale laptop --out results/sh_ablation
 """
@@ -35,7 +35,7 @@ def main():
                          "SH-5 >= w/o SH": sh5 >= results["runs"]["w/o SH"]["psnr"]}
     r.write_results("SH-band ablation", results,
                     [common.markdown_table(["setting", "PSNR [dB]", "SSIM"], rows),
-                     ["Best: %s. Orderings of the seed: %s." % (
+                     ["Best: %s. Orderings of the paper: %s." % (
                          best, ", ".join("%s %s" % (k, "holds" if v else "does not hold")
                                          for k, v in results["checks"].items())),
                       "", "![PSNR per setting](sh_ablation.png)"]])

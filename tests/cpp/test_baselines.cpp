@@ -1,4 +1,4 @@
-// The baselines of DESIGN §4.5 through the Model interface: Bi et al.'s hierarchical sampling and coarse/fine
+// The baselines of docs/design.md §4.5 through the Model interface: Bi et al.'s hierarchical sampling and coarse/fine
 // networks, NeRV's visibility/depth network and one-bounce indirect light; gradients against finite
 // differences, and short trainings on a tiny generated scene.
 #include "test_support.hpp"

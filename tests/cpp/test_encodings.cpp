@@ -32,7 +32,8 @@ Matrix frequency_reference(const Matrix& x, std::uint32_t n_freq, bool include_i
 }
 
 // The SH polynomials exactly as the kernel evaluates them (no renormalisation): Q_l^m(z) * Re/Im (x + iy)^m,
-// written from the seed's K_l^m with factorials, independently of relit::sh.
+// written from the K_l^m of the paper (Zheng, Singh, Seidel, NeurIPS 2021; appendix B, eq. 2) with factorials,
+// independently of relit::sh.
 Matrix sh_polynomial_reference(const Matrix& dirs, int degree) {
   auto fact = [](int n) {
     double f = 1;
@@ -236,10 +237,10 @@ TEST(SphericalHarmonics, OrthonormalByQuadrature) {
   EXPECT_LE((gram - Eigen::MatrixXd::Identity(n, n)).cwiseAbs().maxCoeff(), 1e-12);
 }
 
-// Funk-Hecke for the seed's HG phase p(mu) = (1 - g^2) / (4 pi (1 + g^2 + 2 g mu)^1.5), mu = w . w', both
+// Funk-Hecke for the paper's HG phase p(mu) = (1 - g^2) / (4 pi (1 + g^2 + 2 g mu)^1.5), mu = w . w', both
 // directions pointing away from the scattering point. With the +2g, p(mu) = sum_l (2l+1)/(4 pi) (-g)^l P_l(mu),
 // so   int p(w . w') Y_lm(w') dw' = (-g)^l Y_lm(w) = g^l Y_lm(-w).
-// That is the sign verified here: DESIGN's closed-form indirect term sum g^l c_lm Y_lm(-w_o) uses it.
+// That is the sign verified here: the closed-form indirect term sum g^l c_lm Y_lm(-w_o) of docs/design.md §4.2 uses it.
 TEST(SphericalHarmonics, FunkHeckeIdentityForHenyeyGreenstein) {
   const int l_max = 9, n = sh::n_coefficients(l_max);
   const Matrix dirs = random_directions(3, 11);

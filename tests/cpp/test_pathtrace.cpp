@@ -465,7 +465,8 @@ TEST(PathTraceSampling, BrdfIsReciprocal) {
 // The white furnace of a surface: at albedo 1 the BRDF reflects no more energy than it receives, for every
 // roughness and view angle down to grazing, and (its diffuse lobe takes what the specular one leaves) about
 // all of it. Computed on the device with the path tracer's own brdf_eval, brdf_sample and brdf_pdf. Plain
-// Lambert a/pi + GGX (DESIGN §4.4 as written) fails here: up to 1.15 at r = 0.02-0.05, 80 degrees.
+// Lambert a/pi + GGX (without the energy-conserving diffuse term of docs/design.md §4.4) fails here: up to 1.15
+// at r = 0.02-0.05, 80 degrees.
 TEST(PathTraceSampling, BrdfWhiteFurnaceReflectsAllTheEnergyAndNoMore) {
   const Device dev = test::test_device();
   Kernel k = dev.kernel("pathtrace_probe.cl", "probe_brdf_albedo");

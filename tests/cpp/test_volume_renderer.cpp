@@ -1,4 +1,4 @@
-// The neural volume renderer: forward against a double-precision reference of DESIGN §4.2 on random inputs,
+// The neural volume renderer: forward against a double-precision reference of docs/design.md §4.2 on random inputs,
 // backward against central finite differences of that reference, sampling, and known answers.
 #include "renderer_reference.hpp"
 #include "test_support.hpp"
@@ -140,7 +140,8 @@ TEST(VolumeRenderer, ClosedFormIndirectMatchesReferenceAndFiniteDifferences) {
 }
 
 // With the max(0, .) clamp inactive, the closed form is the K-direction sum's limit (Funk-Hecke with the
-// seed's +2g phase convention): both renderers agree within the Monte Carlo error of K = 4096 directions.
+// +2g phase convention of the paper, Zheng, Singh, Seidel, NeurIPS 2021, appendix A): both renderers agree within the
+// Monte Carlo error of K = 4096 directions.
 TEST(VolumeRenderer, ClosedFormIsTheLimitOfTheDirectionSum) {
   const Device dev = test::test_device();
   const int lmax = 2;
@@ -420,7 +421,7 @@ TEST(VolumeRendererEnvironment, EnvironmentSamplesAreRequiredExactlyWithEnvironm
   dev.finish();  // leave no work queued when the process exits
 }
 
-// ---- scattering "brdf" (solids, "Ours + BRDF", DESIGN §4.4) -----------------------------------------------
+// ---- scattering "brdf" (solids, "Ours + BRDF", docs/design.md §4.4) -----------------------------------------------
 
 namespace {
 
