@@ -493,8 +493,6 @@ void MediumModel::forward_branch(MediumPass& pass, const Branch& branch, Buffer<
       .launch(n, 64);
   mark(timer, "sampling");
   const nn::ConstParamSlice theta{&m_params, branch.theta_offset};
-  const nn::ConstParamSlice theta_sh{&m_params, m_property->n_params()};
-  const nn::ConstParamSlice psi{&m_vis_params, 0};
   if (training)
     branch.property->forward(m_device, theta, pass.net_pos, pass.props_raw, *pass.ws_property);
   else
@@ -504,6 +502,32 @@ void MediumModel::forward_branch(MediumPass& pass, const Branch& branch, Buffer<
   nn::copy_columns(m_device, pass.props_raw, 4, pass.props, render::kG, 1, m_parts.scattering.g_scale);
   if (renderer.brdf()) nn::copy_columns(m_device, pass.props_raw, 5, pass.props, renderer.normal_col(), 3);
   mark(timer, "property net forward");
+  forward_visibility(pass, rays, n_rays, spr, march, env);
+  mark(timer, "visibility net forward");
+  if (n_sh > 0) {
+    forward_indirect(pass, rays, n_rays, spr, training, n_env);
+    mark(timer, "SH head forward");
+  }
+  const nn::BatchMatrix* basis = &sh_basis;
+  if (m_settings.renderer.closed_form_indirect && n_sh > 0) {  // the closed form needs Y(-w_o) of every ray
+    if (pass.view_basis.cols() != n_sh || pass.view_basis.padded() != nn::padded_batch(n_rays))
+      pass.view_basis = nn::BatchMatrix(m_device, n_rays, n_sh);
+    m_renderer->view_basis(rays, n_rays, pass.view_basis);
+    basis = &pass.view_basis;
+  }
+  renderer.forward(rays, n_rays, pass.t, pass.delta, pass.props, dirs, *basis, pass.radiance, pass.color,
+                   pass.transmittance, env);
+  mark(timer, "lighting + compositing forward");
+}
+
+// V toward the point light and each environment direction: the visibility net's (inference: the render loss
+// does not train ψ) or a march through the density grid.
+void MediumModel::forward_visibility(MediumPass& pass, Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t spr,
+                                     bool march, const render::EnvironmentSamples* env) const {
+  const std::uint32_t n = n_rays * spr;
+  const std::uint32_t n_env = env ? env->size() : 0;
+  const std::uint32_t n_sh = m_renderer->n_sh();
+  const nn::ConstParamSlice psi{&m_vis_params, 0};
   if (march) {
     render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps, pass.vis);
   } else {
@@ -529,46 +553,40 @@ void MediumModel::forward_branch(MediumPass& pass, const Branch& branch, Buffer<
           .launch(std::size_t(n) * n_env, 64);
     }
   }
-  mark(timer, "visibility net forward");
-  if (n_sh > 0) {
-    nn::copy_columns(m_device, pass.props_raw, prop_heads(), pass.light_in, 0, m_settings.n_features);
-    const std::uint32_t depth_col = m_settings.indirect_optical_depth > 0.0f ? 1 : 0;
-    if (m_settings.indirect_visibility_input)  // an input only: its gradient column is dropped (ψ stays isolated)
-      nn::copy_columns(m_device, pass.vis, 0, pass.light_in, indirect_input_cols(m_settings) - 1 - depth_col, 1);
-    if (depth_col) {  // an input only, marched through the density grid: no gradient reaches σ
-      nn::ensure_rows(pass.depth_in, m_device, n, 1);
-      render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps,
-                               pass.depth_in, m_settings.indirect_optical_depth);
-      nn::copy_columns(m_device, pass.depth_in, 0, pass.light_in, indirect_input_cols(m_settings) - 1, 1);
-    }
+}
+
+// The SH head's coefficients (and c_env's under an environment) into the renderer's SH columns.
+void MediumModel::forward_indirect(MediumPass& pass, Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t spr,
+                                   bool training, std::uint32_t n_env) const {
+  const std::uint32_t n = n_rays * spr;
+  const std::uint32_t n_sh = m_renderer->n_sh();
+  const nn::ConstParamSlice theta_sh{&m_params, m_property->n_params()};
+  nn::copy_columns(m_device, pass.props_raw, prop_heads(), pass.light_in, 0, m_settings.n_features);
+  const std::uint32_t depth_col = m_settings.indirect_optical_depth > 0.0f ? 1 : 0;
+  if (m_settings.indirect_visibility_input)  // an input only: its gradient column is dropped (ψ stays isolated)
+    nn::copy_columns(m_device, pass.vis, 0, pass.light_in, indirect_input_cols(m_settings) - 1 - depth_col, 1);
+  if (depth_col) {  // an input only, marched through the density grid: no gradient reaches σ
+    nn::ensure_rows(pass.depth_in, m_device, n, 1);
+    render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps, pass.depth_in,
+                             m_settings.indirect_optical_depth);
+    nn::copy_columns(m_device, pass.depth_in, 0, pass.light_in, indirect_input_cols(m_settings) - 1, 1);
+  }
+  if (training)
+    m_indirect->forward(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
+  else
+    m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
+  nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,
+                                 1.0f / m_settings.intensity_reference);
+  if (m_settings.indirect_depth_attenuation)
+    nn::multiply_columns(m_device, pass.depth_in, pass.props, render::kSH, 3 * n_sh);
+  if (m_environment && n_env > 0) {  // c += c_env(f(x)): the environment's indirect light, not scaled by I
+    const nn::ConstParamSlice theta_env{&m_params, m_property->n_params() + m_indirect->n_params()};
     if (training)
-      m_indirect->forward(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
+      m_environment->forward(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
     else
-      m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
-    nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,
-                                   1.0f / m_settings.intensity_reference);
-    if (m_settings.indirect_depth_attenuation)
-      nn::multiply_columns(m_device, pass.depth_in, pass.props, render::kSH, 3 * n_sh);
-    if (m_environment && n_env > 0) {  // c += c_env(f(x)): the environment's indirect light, not scaled by I
-      const nn::ConstParamSlice theta_env{&m_params, m_property->n_params() + m_indirect->n_params()};
-      if (training)
-        m_environment->forward(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
-      else
-        m_environment->inference(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
-      nn::copy_columns(m_device, pass.env_raw, 0, pass.props, render::kSH, 3 * n_sh, 1.0f, true);
-    }
-    mark(timer, "SH head forward");
+      m_environment->inference(m_device, theta_env, pass.light_in, pass.env_raw, *pass.ws_environment);
+    nn::copy_columns(m_device, pass.env_raw, 0, pass.props, render::kSH, 3 * n_sh, 1.0f, true);
   }
-  const nn::BatchMatrix* basis = &sh_basis;
-  if (m_settings.renderer.closed_form_indirect && n_sh > 0) {  // the closed form needs Y(-w_o) of every ray
-    if (pass.view_basis.cols() != n_sh || pass.view_basis.padded() != nn::padded_batch(n_rays))
-      pass.view_basis = nn::BatchMatrix(m_device, n_rays, n_sh);
-    m_renderer->view_basis(rays, n_rays, pass.view_basis);
-    basis = &pass.view_basis;
-  }
-  renderer.forward(rays, n_rays, pass.t, pass.delta, pass.props, dirs, *basis, pass.radiance, pass.color,
-                   pass.transmittance, env);
-  mark(timer, "lighting + compositing forward");
 }
 
 void MediumModel::backward_branch(MediumPass& pass, const Branch& branch, const Buffer<float>& rays,

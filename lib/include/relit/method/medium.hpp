@@ -244,6 +244,11 @@ class MediumModel : public Model {
   void forward_branch(MediumPass& pass, const Branch& branch, Buffer<float>& rays, std::uint32_t n_rays, bool training,
                       std::uint32_t seed, const nn::BatchMatrix& dirs, const nn::BatchMatrix& sh_basis, bool march,
                       StageTimer* timer, const render::EnvironmentSamples* env, bool place_samples) const;
+  /// forward_branch()'s visibility (V columns of the properties) and SH-head parts.
+  void forward_visibility(MediumPass& pass, Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t spr, bool march,
+                          const render::EnvironmentSamples* env) const;
+  void forward_indirect(MediumPass& pass, Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t spr, bool training,
+                        std::uint32_t n_env) const;
   void backward_branch(MediumPass& pass, const Branch& branch, const Buffer<float>& rays, const nn::BatchMatrix& dirs,
                        const nn::BatchMatrix& sh_basis, const Buffer<float>& d_color, StageTimer* timer,
                        const render::EnvironmentSamples* env);
