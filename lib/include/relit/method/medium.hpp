@@ -1,5 +1,6 @@
-// MediumModel: the model every method of relit is put together from (DESIGN §4.3-4.5): a participating
-// medium whose properties a network predicts, lit through a learned visibility network.
+// MediumModel: the model every method of relit is put together from: a participating medium whose
+// properties a network predicts, lit through a learned visibility network (Zheng, Singh, Seidel, "Neural
+// Relightable Participating Media Rendering", NeurIPS 2021, and the baselines of its appendix D).
 //
 //   positions x ──► property net F_θ ──► σ (softplus), the scattering part's heads, feature f
 //   [f, p_l]   ──► indirect SH head h_θ ──► c = (I / I_ref) ⊙ h + c_env  (scaled by the light's RGB intensity)
@@ -14,8 +15,8 @@
 // Each part reads its own section of the "model" config (docs/config.md).
 //
 // θ ([property net | SH head | environment head | coarse net]) and ψ (visibility net) live in two flat
-// parameter buffers with their own optimisers. Gradients are isolated both ways (seed appendix C): the render
-// loss reaches θ only (the renderer gives no gradient to V), and the visibility loss — against the
+// parameter buffers with their own optimisers. Gradients are isolated both ways (the paper's appendix C):
+// the render loss reaches θ only (the renderer gives no gradient to V), and the visibility loss — against the
 // transmittance of the learned density, marched through a cached density grid — reaches ψ only (the targets
 // are constants).
 #pragma once

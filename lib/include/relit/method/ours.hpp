@@ -1,7 +1,7 @@
-// The method of Zheng, Singh, Seidel (NeurIPS 2021), "ours" (DESIGN §4.3), and its solid-object variant
-// "ours_brdf" (§4.4): a MediumModel (relit/method/medium.hpp) with every part at its default — the HG phase
-// function with g = 0.95 tanh(raw), the light-conditioned SH indirect head and the environment's c_env head,
-// uniform samples along each ray.
+// The method of Zheng, Singh, Seidel (NeurIPS 2021), "ours", and its solid-object variant "ours_brdf":
+// MediumModels (relit/method/medium.hpp). Ours has every part at its default: the HG phase function with
+// g = 0.95 tanh(raw), the light-conditioned SH indirect head and the environment's c_env head, uniform samples
+// along each ray; Ours + BRDF replaces the phase function by the BRDF.
 //
 // The model is configured by the "model" object of a run config (docs/method.md; keys in docs/config.md).
 #pragma once
