@@ -59,7 +59,7 @@ Json tiny_env_model(const std::string& sh = "1") {
 EnvironmentLight test_sky() { return EnvironmentLight::sky(16, 8, 2, 0.5f, true); }
 
 // sum_j w_j colour_j over the rays of the tiny image, in double.
-double weighted_colour(method::Ours& model, method::OursPass& pass, Buffer<float>& rays, std::uint32_t n,
+double weighted_colour(method::Ours& model, method::MediumPass& pass, Buffer<float>& rays, std::uint32_t n,
                        render::IndirectBasis& basis, const std::vector<float>& w,
                        const render::EnvironmentSamples* env = nullptr) {
   model.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis(), false, nullptr, env);
@@ -78,7 +78,7 @@ void check_gradients(method::Ours& model, const render::EnvironmentSamples* env,
   Buffer<float>& rays = batch.rays;
   render::IndirectBasis& basis = batch.basis;
   if (env) env->fill_background(rays, n);
-  method::OursPass pass;
+  method::MediumPass pass;
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   std::vector<float> w(3 * n);
@@ -160,7 +160,7 @@ TEST(Method, GradientsAreIsolatedBothWays) {
     const std::uint32_t n = batch.n;
     Buffer<float>& rays = batch.rays;
     const render::IndirectBasis& basis = batch.basis;
-    method::OursPass pass;
+    method::MediumPass pass;
     model.refresh_density_grid();
     model.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis());
     // The render loss does not reach the visibility network...
@@ -200,7 +200,7 @@ TEST(Method, IndirectHeadCanSeeTheVisibility) {
   Buffer<float>& rays = batch.rays;
   const render::IndirectBasis& basis = batch.basis;
   for (const bool march : {false, true}) {
-    method::OursPass pass;
+    method::MediumPass pass;
     with.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis(), march);
     const auto vis = pass.vis.download_row_major(), in = pass.light_in.download_row_major();
     const std::uint32_t cols = pass.light_in.cols(), vcols = pass.vis.cols();
@@ -228,7 +228,7 @@ TEST(Method, IndirectHeadCanSeeTheOpticalDepth) {
   model.initialize(2);
   model.refresh_density_grid();
   TinyBatch batch(dev);
-  method::OursPass pass;
+  method::MediumPass pass;
   model.forward(pass, batch.rays, batch.n, true, 3, batch.basis.dirs(), batch.basis.basis(), true);
   const auto vis = pass.vis.download_row_major(), in = pass.light_in.download_row_major();
   const std::uint32_t cols = pass.light_in.cols(), vcols = pass.vis.cols();
@@ -255,7 +255,7 @@ TEST(Method, IndirectHeadCanSeeTheOpticalDepth) {
     m->initialize(2);
     m->refresh_density_grid();
   }
-  method::OursPass p0, p1;
+  method::MediumPass p0, p1;
   plain.forward(p0, batch.rays, batch.n, true, 3, batch.basis.dirs(), batch.basis.basis());
   attenuated.forward(p1, batch.rays, batch.n, true, 3, batch.basis.dirs(), batch.basis.basis());
   const auto a0 = p0.props.download_row_major(), a1 = p1.props.download_row_major(),
@@ -287,7 +287,7 @@ TEST(Method, EnvironmentVisibilityColumnsAndTargetsComeFromTheirDirections) {
   env.draw(4, 0);
   const auto dirs = env.dirs().download_row_major();
   const std::uint32_t col = model.renderer(n_env).env_visibility_col();
-  method::OursPass pass;
+  method::MediumPass pass;
   for (const bool march : {false, true}) {
     SCOPED_TRACE(march ? "march" : "network");
     model.forward(pass, rays, n, true, 3, basis.dirs(), basis.basis(), march, nullptr, &env);
@@ -431,7 +431,7 @@ TEST(Method, TrainingVisibilityCanMarchTheDensityGrid) {
   model.initialize(2);
   model.refresh_density_grid();
   TinyBatch batch(dev);
-  method::OursPass marched, training, inference;
+  method::MediumPass marched, training, inference;
   model.forward(marched, batch.rays, batch.n, true, 3, batch.basis.dirs(), batch.basis.basis(), true);
   method::PassOptions o;
   o.training = true;

@@ -13,6 +13,7 @@
 #include <relit/io/image.hpp>
 #include <relit/log.hpp>
 #include <relit/method/model.hpp>
+#include <relit/method/medium.hpp>
 #include <relit/method/ours.hpp>
 #include <relit/method/bi.hpp>
 #include <relit/method/nerv.hpp>

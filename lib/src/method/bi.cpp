@@ -1,25 +1,14 @@
 // Bi et al.'s Neural Reflectance Field (seed appendix D): coarse and fine networks joined by hierarchical
-// sampling, on the renderer and visibility machinery of Ours.
+// sampling, on the renderer and visibility machinery every method shares (MediumModel).
 #include <relit/cl/program.hpp>
 #include <relit/method/bi.hpp>
-#include <relit/nn/registry.hpp>
 
 #include "common.hpp"
+#include "registration.hpp"
 
 namespace relit::method {
 
 namespace {
-
-Json default_coarse() {
-  return {{"encoding",
-           {{"type", "HashGrid"},
-            {"n_levels", 12},
-            {"n_features_per_level", 2},
-            {"log2_hashmap_size", 17},
-            {"base_resolution", 16},
-            {"per_level_scale", 1.32}}},
-          {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}}};
-}
 
 BiPass& bi_pass(ModelPass& pass) {
   auto* p = dynamic_cast<BiPass*>(&pass);
@@ -30,49 +19,17 @@ BiPass& bi_pass(ModelPass& pass) {
 }  // namespace
 
 NeuralReflectanceField::NeuralReflectanceField(const Device& device, const Json& config, const std::string& pointer)
-    : Ours(device, Variant::bi) {
-  configure(config, pointer, nullptr);
-  allocate();
+    : MediumModel(device, method_parts()) {
+  build(config, pointer);
 }
 
-void NeuralReflectanceField::describe(config::Docs& docs) {
-  NeuralReflectanceField m(Variant::bi);
-  m.configure(Json::object(), "/model", &docs);
-}
+void NeuralReflectanceField::describe(config::Docs& docs) { NeuralReflectanceField().describe_keys(docs); }
 
-void NeuralReflectanceField::configure_renderer_extra(config::Reader& r) {
-  m_n_fine = r.uint("n_fine_samples", 128, 16, 1024,
-                    "importance samples per ray drawn from the coarse weights (a multiple of 16); the fine network "
-                    "sees these and the coarse ones");
-  if (m_n_fine % 16) r.fail("n_fine_samples", "must be a multiple of 16, got " + std::to_string(m_n_fine));
-}
-
-void NeuralReflectanceField::configure_extra(config::Reader& r, config::Docs* docs) {
-  // The coarse network: the same heads as the fine one ("property"), on the coarse samples.
-  const std::string ptr = r.pointer("coarse");
-  config::Reader sub(r.sub("coarse", default_coarse(), "object",
-                           "the coarse network {encoding, network} (\"property\" is the fine network)"),
-                     ptr, "coarse");
-  const Json enc = sub.sub("encoding", default_coarse()["encoding"], "component", "position encoding (3 dims)");
-  Json net = sub.sub("network", default_coarse()["network"], "component", "the MLP; its heads are set by the model");
-  sub.finish();
-  if (docs) docs->emplace_back(sub.pointer(), sub.docs());
-  net = detail::with_heads(net, ptr + "/network", m_property->network().hyperparams()["output_heads"]);
-  auto e = nn::create_encoding(enc, 3, ptr + "/encoding");
-  auto n = nn::create_network(net, e->n_output_dims(), m_property->n_output_dims(), ptr + "/network");
-  m_coarse = std::make_unique<nn::NetworkWithInputEncoding>(std::move(e), std::move(n));
-  Json res = m_coarse->hyperparams();
-  res["network"] = detail::strip_heads(res["network"]);
-  r.set_resolved("coarse", res);
-}
-
-void NeuralReflectanceField::initialize_extra(float* theta, std::uint64_t seed) const {
-  m_coarse->initialize_params(theta, seed);
-}
+RELIT_REGISTER_METHODS(bi) { registry.add<NeuralReflectanceField>("bi", 30); }
 
 std::uint32_t NeuralReflectanceField::queries_per_ray() const {
   const std::uint32_t per_sample = 1 + (has_environment() ? env_dirs() : 0);
-  return (2 * n_coarse_samples() + m_n_fine) * per_sample;
+  return (2 * n_coarse_samples() + n_fine_samples()) * per_sample;
 }
 
 void NeuralReflectanceField::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays,
@@ -83,9 +40,10 @@ void NeuralReflectanceField::render(ModelPass& base, Buffer<float>& rays, std::u
   forward_branch(pass.coarse, coarse, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(),
                  marches(o), o.timer, o.env, true);
   prepare_branch(pass, fine, n_rays, pass.coarse.n_env);
-  detail::ensure_size(pass.t_fine_only, m_device, std::size_t(n_rays) * m_n_fine);
-  sample_fine(m_device, rays, n_rays, coarse.n_samples, pass.coarse.t, pass.coarse.delta, pass.coarse.props, m_n_fine,
-              o.training, o.jitter_seed ^ 0x5bd1e995u, pass.t_fine_only, pass.t, pass.delta, pass.positions);
+  detail::ensure_size(pass.t_fine_only, m_device, std::size_t(n_rays) * n_fine_samples());
+  sample_fine(m_device, rays, n_rays, coarse.n_samples, pass.coarse.t, pass.coarse.delta, pass.coarse.props,
+              n_fine_samples(), o.training, o.jitter_seed ^ 0x5bd1e995u, pass.t_fine_only, pass.t, pass.delta,
+              pass.positions);
   if (o.timer) o.timer->mark("hierarchical sampling");
   forward_branch(pass, fine, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(),
                  marches(o), o.timer, o.env, false);

@@ -1,7 +1,8 @@
 // The Model base (storage, StageTimer) and the method registry: the run config's "method" key → the class.
 #include <relit/error.hpp>
-#include <relit/method/bi.hpp>
-#include <relit/method/nerv.hpp>
+#include <relit/method/model.hpp>
+
+#include "registration.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -50,24 +51,45 @@ void Model::allocate_storage(std::uint32_t n_theta, std::uint32_t n_psi, std::ui
   m_grid.sigma.fill(0.0f);
 }
 
-std::vector<std::string> method_names() { return {"ours", "ours_brdf", "bi", "nerv"}; }
+void MethodRegistry::add(MethodEntry entry) {
+  if (find(entry.name)) throw InvalidArgument("MethodRegistry: method '" + entry.name + "' registered twice");
+  auto at = std::find_if(m_entries.begin(), m_entries.end(), [&](const MethodEntry& e) {
+    return e.rank > entry.rank || (e.rank == entry.rank && e.name > entry.name);
+  });
+  m_entries.insert(at, std::move(entry));
+}
+
+const MethodEntry* MethodRegistry::find(const std::string& name) const {
+  for (const auto& e : m_entries)
+    if (e.name == name) return &e;
+  return nullptr;
+}
+
+const MethodRegistry& methods() {
+  static const MethodRegistry registry = [] {
+    MethodRegistry r;
+    detail::register_all_methods(r);
+    return r;
+  }();
+  return registry;
+}
+
+std::vector<std::string> method_names() {
+  std::vector<std::string> names;
+  for (const auto& e : methods().entries()) names.push_back(e.name);
+  return names;
+}
 
 std::unique_ptr<Model> create_model(const Device& device, const std::string& method, const Json& config,
                                     const std::string& pointer) {
-  if (method == "ours") return std::make_unique<Ours>(device, config, pointer);
-  if (method == "ours_brdf") return std::make_unique<OursBrdf>(device, config, pointer);
-  if (method == "bi") return std::make_unique<NeuralReflectanceField>(device, config, pointer);
-  if (method == "nerv") return std::make_unique<NeRV>(device, config, pointer);
+  if (const MethodEntry* e = methods().find(method)) return e->create(device, config, pointer);
   std::string names;
   for (const auto& m : method_names()) names += (names.empty() ? "" : ", ") + m;
   throw ConfigError("/method", "unknown method '" + method + "'; valid methods: " + names);
 }
 
 void describe_model(const std::string& method, config::Docs& docs) {
-  if (method == "ours") return Ours::describe(docs);
-  if (method == "ours_brdf") return OursBrdf::describe(docs);
-  if (method == "bi") return NeuralReflectanceField::describe(docs);
-  if (method == "nerv") return NeRV::describe(docs);
+  if (const MethodEntry* e = methods().find(method)) return e->describe(docs);
   throw InvalidArgument("describe_model: unknown method '" + method + "'");
 }
 

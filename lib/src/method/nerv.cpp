@@ -1,4 +1,4 @@
-// NeRV (seed appendix D): Ours' property network and renderer for the direct light, a two-stage visibility
+// NeRV (seed appendix D): the shared property network and renderer for the direct light, a two-stage visibility
 // network that also predicts the expected termination depth, and one indirect bounce per camera ray
 // (kernels/nerv.cl).
 #include <relit/cl/program.hpp>
@@ -8,6 +8,7 @@
 #include <relit/nn/registry.hpp>
 
 #include "common.hpp"
+#include "registration.hpp"
 
 #include <algorithm>
 
@@ -128,30 +129,29 @@ using detail::ensure_size;
 
 }  // namespace
 
-NeRV::NeRV(const Device& device, const Json& config, const std::string& pointer) : Ours(device, Variant::nerv) {
-  configure(config, pointer, nullptr);
-  allocate();
+NeRV::NeRV(const Device& device, const Json& config, const std::string& pointer) : MediumModel(device, method_parts()) {
+  build(config, pointer);
 }
 
-void NeRV::describe(config::Docs& docs) {
-  NeRV m(Variant::nerv);
-  m.configure(Json::object(), "/model", &docs);
+void NeRV::describe(config::Docs& docs) { NeRV().describe_keys(docs); }
+
+RELIT_REGISTER_METHODS(nerv) { registry.add<NeRV>("nerv", 40); }
+
+void NeRV::configure_method(config::Reader& r, config::Docs* docs) {
+  config::Reader b(r.sub("bounce", Json::object(), "object", "the one indirect bounce per camera ray"),
+                   r.pointer("bounce"), "bounce");
+  m_nerv.n_dirs = b.uint("n_dirs", 128, 1, 4096,
+                         "K of a training step: uniform bounce directions from the expected termination point");
+  m_nerv.n_dirs_render = b.uint("n_dirs_render", 128, 1, 4096, "K when rendering images (the seed's 128)");
+  m_nerv.n_dirs_env = b.uint("n_dirs_env", 32, 1, 4096, "K when the scene is also lit by an environment map");
+  m_nerv.visibility_fraction = b.number("visibility_fraction", 0.25f, 1e-3f, 1.0f,
+                                        "share of each batch's rays whose bounce queries train the visibility net");
+  b.finish();
+  if (docs) docs->emplace_back(b.pointer(), b.docs());
+  r.set_resolved("bounce", b.resolved());
 }
 
-void NeRV::configure_extra(config::Reader& r, config::Docs* docs) {
-  {
-    config::Reader b(r.sub("bounce", Json::object(), "object", "the one indirect bounce per camera ray"),
-                     r.pointer("bounce"), "bounce");
-    m_nerv.n_dirs = b.uint("n_dirs", 128, 1, 4096,
-                           "K of a training step: uniform bounce directions from the expected termination point");
-    m_nerv.n_dirs_render = b.uint("n_dirs_render", 128, 1, 4096, "K when rendering images (the seed's 128)");
-    m_nerv.n_dirs_env = b.uint("n_dirs_env", 32, 1, 4096, "K when the scene is also lit by an environment map");
-    m_nerv.visibility_fraction = b.number("visibility_fraction", 0.25f, 1e-3f, 1.0f,
-                                          "share of each batch's rays whose bounce queries train the visibility net");
-    b.finish();
-    if (docs) docs->emplace_back(b.pointer(), b.docs());
-    r.set_resolved("bounce", b.resolved());
-  }
+void NeRV::configure_visibility(config::Reader& r, config::Docs* docs) {
   const std::string ptr = r.pointer("visibility");
   const Json defaults = default_visibility();
   config::Reader v(
@@ -199,7 +199,7 @@ std::uint32_t NeRV::queries_per_ray() const {
 
 void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& o) const {
   NeRVPass& pass = nerv_pass(base);
-  Ours::render(pass, rays, n_rays, o);  // direct light: the samples, σ, albedo, g, V and the colour
+  MediumModel::render(pass, rays, n_rays, o);  // direct light: the samples, σ, albedo, g, V and the colour
   const std::uint32_t K = bounce_dirs(o.env != nullptr, o.training), spr = m_settings.renderer.n_samples;
   const std::uint32_t nq = n_rays * K;
   if (!pass.bounce_dirs || pass.n_bounce != K)
@@ -270,8 +270,9 @@ void NeRV::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, co
   const Buffer<float>& env_dirs = n_env ? o.env->dirs().data() : pass.env_in.data();
   const Buffer<float>& env_weights = n_env ? o.env->weights().data() : pass.env_in.data();
   m_device.kernel("nerv.cl", "nerv_indirect")
-      .args(n_rays, K, rays, dirs.data(), pass.x_b, pass.bounce_props.data(), pc, g_scale(), pass.light_vd.data(), vd,
-            n_env, env_dirs, env_weights, pass.env_vd.data(), pass.albedo_sum, pass.color, pass.total, pass.indirect)
+      .args(n_rays, K, rays, dirs.data(), pass.x_b, pass.bounce_props.data(), pc, m_parts.scattering.g_scale,
+            pass.light_vd.data(), vd, n_env, env_dirs, env_weights, pass.env_vd.data(), pass.albedo_sum, pass.color,
+            pass.total, pass.indirect)
       .launch(n_rays, 16);
   if (o.timer) o.timer->mark("indirect bounce forward");
 }
@@ -281,7 +282,7 @@ const Buffer<float>& NeRV::color(const ModelPass& base, std::uint32_t i) const {
   return nerv_pass(const_cast<ModelPass&>(base)).total;
 }
 
-void NeRV::add_property_gradients(OursPass& base, const Branch& branch, const Buffer<float>& rays,
+void NeRV::add_property_gradients(MediumPass& base, const Branch& branch, const Buffer<float>& rays,
                                   const Buffer<float>& d_color) {
   (void)branch;
   NeRVPass& pass = nerv_pass(base);
@@ -292,9 +293,9 @@ void NeRV::add_property_gradients(OursPass& base, const Branch& branch, const Bu
   const Buffer<float>& env_dirs = n_env ? pass.env->dirs().data() : pass.env_in.data();
   const Buffer<float>& env_weights = n_env ? pass.env->weights().data() : pass.env_in.data();
   m_device.kernel("nerv.cl", "nerv_indirect_backward")
-      .args(n_rays, K, rays, pass.bounce_dirs->dirs().data(), pass.x_b, pass.bounce_props.data(), pc, g_scale(),
-            pass.light_vd.data(), vd, n_env, env_dirs, env_weights, pass.env_vd.data(), pass.albedo_sum, pass.indirect,
-            d_color, pass.d_bounce_props.data(), pass.dw)
+      .args(n_rays, K, rays, pass.bounce_dirs->dirs().data(), pass.x_b, pass.bounce_props.data(), pc,
+            m_parts.scattering.g_scale, pass.light_vd.data(), vd, n_env, env_dirs, env_weights, pass.env_vd.data(),
+            pass.albedo_sum, pass.indirect, d_color, pass.d_bounce_props.data(), pass.dw)
       .launch(n_rays, 16);
   m_device.kernel("nerv.cl", "nerv_samples_backward")
       .args(n_rays, pass.n_samples, pass.delta, pass.props.data(), pass.props.cols(), pass.dw, pass.d_props.data())
@@ -305,7 +306,7 @@ void NeRV::backward(ModelPass& base, const Buffer<float>& rays, const std::vecto
                     const PassOptions& o) {
   NeRVPass& pass = nerv_pass(base);
   if (pass.n_bounce == 0) throw InvalidArgument("NeRV::backward: no training render() before");
-  Ours::backward(pass, rays, d_colors, o);  // direct light and W (add_property_gradients); overwrites dθ
+  MediumModel::backward(pass, rays, d_colors, o);  // direct light and W (add_property_gradients); overwrites dθ
   // The bounce points and x_t: their albedo and g, added to the property net's gradient.
   m_property->backward(m_device, {&m_params, 0}, pass.bounce_pos, pass.bounce_props, pass.d_bounce_props, {&m_grads, 0},
                        true, nullptr, *pass.ws_bounce_property);

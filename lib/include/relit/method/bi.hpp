@@ -8,26 +8,36 @@
 //
 // The render loss is the L2 of both images (the trainer sums them); V_ψ is trained against marches of the
 // fine network's density, gradients isolated both ways as Ours. θ = [fine net | coarse net].
+//
+// A MediumModel (relit/method/medium.hpp) of the parts: the isotropic HG phase (g = 0), no SH head,
+// hierarchical sampling; this class runs the coarse and the fine pass.
 #pragma once
 
-#include <relit/method/ours.hpp>
+#include <relit/method/medium.hpp>
 
 namespace relit::method {
 
-/// A pass of Bi et al.: the fine pass (this OursPass) and the coarse one.
-struct BiPass : OursPass {
-  OursPass coarse;
+/// A pass of Bi et al.: the fine pass (this MediumPass) and the coarse one.
+struct BiPass : MediumPass {
+  MediumPass coarse;
   Buffer<float> t_fine_only;  // the N_f importance samples of each ray before the merge
 };
 
-class NeuralReflectanceField : public Ours {
+class NeuralReflectanceField : public MediumModel {
  public:
   NeuralReflectanceField(const Device& device, const Json& config, const std::string& pointer = "/model");
   static void describe(config::Docs& docs);
+  static MethodParts method_parts() {
+    MethodParts p;
+    p.scattering = Scattering::hg_phase(0.0f);
+    p.sh_head = false;
+    p.hierarchical = true;
+    return p;
+  }
 
   std::string method() const override { return "bi"; }
   std::uint32_t n_coarse_samples() const { return m_settings.renderer.n_samples; }
-  std::uint32_t n_fine_samples() const { return m_n_fine; }
+  std::uint32_t n_fine_samples() const { return m_settings.n_fine_samples; }
   const nn::NetworkWithInputEncoding& coarse_network() const { return *m_coarse; }
   std::uint32_t queries_per_ray() const override;
 
@@ -39,18 +49,10 @@ class NeuralReflectanceField : public Ours {
   void backward(ModelPass& pass, const Buffer<float>& rays, const std::vector<const Buffer<float>*>& d_colors,
                 const PassOptions& options) override;
 
- protected:
-  void configure_extra(config::Reader& r, config::Docs* docs) override;
-  void configure_renderer_extra(config::Reader& r) override;
-  std::uint32_t n_extra_params() const override { return m_coarse->n_params(); }
-  void initialize_extra(float* theta, std::uint64_t seed) const override;
-
  private:
-  explicit NeuralReflectanceField(Variant v) : Ours(v) {}
+  NeuralReflectanceField() : MediumModel(method_parts()) {}
   Branch coarse_branch() const { return {m_coarse.get(), own_params(), n_coarse_samples()}; }
-  Branch fine_branch() const { return {m_property.get(), 0, n_coarse_samples() + m_n_fine}; }
-  std::uint32_t m_n_fine = 128;
-  std::unique_ptr<nn::NetworkWithInputEncoding> m_coarse;
+  Branch fine_branch() const { return {m_property.get(), 0, n_coarse_samples() + n_fine_samples()}; }
 };
 
 /// Hierarchical sampling: from the coarse pass (its t, delta and σ in column 0 of `coarse_props`, n_coarse

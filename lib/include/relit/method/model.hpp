@@ -3,10 +3,11 @@
 // A method owns its networks and two flat parameter buffers — θ (everything the render loss trains) and ψ
 // (the visibility network, trained only against marches through the learned density) — with a cached density
 // grid for those marches. A pass renders a batch of rays; backward() turns dL/dcolour into dL/dθ, and
-// train_visibility() writes dL/dψ. The run config's "method" key picks the class:
+// train_visibility() writes dL/dψ. The run config's "method" key picks the method from the registry
+// (methods()), where each method's source registers it (RELIT_REGISTER_METHODS, docs/method.md):
 //
 //   "ours"  Ours (relit/method/ours.hpp)                  "bi"    NeuralReflectanceField (relit/method/bi.hpp)
-//   "nerv"  NeRV (relit/method/nerv.hpp)
+//   "ours_brdf"  OursBrdf (relit/method/ours.hpp)         "nerv"  NeRV (relit/method/nerv.hpp)
 //
 //   auto model = relit::method::create_model(device, "bi", config["model"]);
 //   auto pass = model->make_pass();
@@ -19,6 +20,7 @@
 #include <relit/nn/loss.hpp>
 #include <relit/render/visibility.hpp>
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -134,6 +136,44 @@ class Model {
   Buffer<float> m_params, m_grads, m_vis_params, m_vis_grads;
   render::DensityGrid m_grid;
 };
+
+/// A method as the registry knows it: its name in run configs, its factory and the documentation of its
+/// "model" config.
+struct MethodEntry {
+  using Factory = std::function<std::unique_ptr<Model>(const Device&, const Json& config, const std::string& pointer)>;
+  std::string name;
+  /// Where the method is listed in method_names() (and in docs/config.md): by rank, then by name.
+  int rank = 0;
+  Factory create;
+  /// Appends every key of the method's "model" config, per JSON object (pointers "/model...").
+  std::function<void(config::Docs&)> describe;
+};
+
+/// The methods a run config may name. Each method's source adds its entries in a registration function
+/// (RELIT_REGISTER_METHODS(name) in lib/src/method/registration.hpp), which the library calls on first use.
+class MethodRegistry {
+ public:
+  void add(MethodEntry entry);
+  /// Registers class M: constructible as M(device, config, pointer), and static M::describe(config::Docs&).
+  template <class M>
+  void add(const std::string& name, int rank) {
+    add({name, rank,
+         [](const Device& device, const Json& config, const std::string& pointer) -> std::unique_ptr<Model> {
+           return std::make_unique<M>(device, config, pointer);
+         },
+         [](config::Docs& docs) { M::describe(docs); }});
+  }
+  /// The entry of `name`, or null.
+  const MethodEntry* find(const std::string& name) const;
+  /// Every method, in listing order.
+  const std::vector<MethodEntry>& entries() const { return m_entries; }
+
+ private:
+  std::vector<MethodEntry> m_entries;
+};
+
+/// The registry of the methods (filled on first use).
+const MethodRegistry& methods();
 
 /// The methods a run config may name.
 std::vector<std::string> method_names();

@@ -10,9 +10,12 @@
 //
 // V_ψ is trained against marches of the learned density (V and D, toward the light from camera samples and
 // along the bounce directions from x_t), gradients isolated both ways as Ours.
+//
+// A MediumModel (relit/method/medium.hpp) of the parts: the HG phase (g = 0.95 tanh), no SH head, uniform
+// samples; this class adds its own visibility net (V and D) and the bounce ("bounce").
 #pragma once
 
-#include <relit/method/ours.hpp>
+#include <relit/method/medium.hpp>
 
 namespace relit::method {
 
@@ -23,24 +26,29 @@ struct NeRVSettings {
   float visibility_fraction = 0.25f;  ///< share of rays whose bounce queries also train V_ψ
 };
 
-struct NeRVPass : OursPass {
+struct NeRVPass : MediumPass {
   std::uint32_t n_bounce = 0;
   /// Keep the termination points x_t of the previous pass (x_t is a constant for the render loss; finite
   /// differences of the colour match backward() only with x_t held).
   bool keep_termination = false;
   std::unique_ptr<render::IndirectBasis> bounce_dirs;
   Buffer<float> albedo_sum, x_t, x_b, indirect, dw;  // float4 per ray (x_b: per bounce)
-  Buffer<float> total;  // the image: the direct colour (OursPass::color, kept for its backward pass) + W ⊙ E
+  Buffer<float> total;  // the image: the direct colour (MediumPass::color, kept for its backward pass) + W ⊙ E
   nn::BatchMatrix bounce_in, bounce_vd, bounce_pos, bounce_props, d_bounce_props, light_in, light_vd, env_in, env_vd;
   const render::EnvironmentSamples* env = nullptr;  // the environment of the last render()
   nn::BatchMatrix train_in, train_out, train_target, d_train;
   std::unique_ptr<nn::Workspace> ws_bounce_vis, ws_light_vis, ws_env_vis, ws_bounce_property;
 };
 
-class NeRV : public Ours {
+class NeRV : public MediumModel {
  public:
   NeRV(const Device& device, const Json& config, const std::string& pointer = "/model");
   static void describe(config::Docs& docs);
+  static MethodParts method_parts() {
+    MethodParts p;
+    p.sh_head = false;
+    return p;
+  }
 
   std::string method() const override { return "nerv"; }
   const NeRVSettings& nerv_settings() const { return m_nerv; }
@@ -59,12 +67,13 @@ class NeRV : public Ours {
                         float weight, const PassOptions& options) override;
 
  protected:
-  void configure_extra(config::Reader& r, config::Docs* docs) override;
-  void add_property_gradients(OursPass& pass, const Branch& branch, const Buffer<float>& rays,
+  void configure_method(config::Reader& r, config::Docs* docs) override;  // "bounce"
+  void configure_visibility(config::Reader& r, config::Docs* docs) override;
+  void add_property_gradients(MediumPass& pass, const Branch& branch, const Buffer<float>& rays,
                               const Buffer<float>& d_color) override;
 
  private:
-  explicit NeRV(Variant v) : Ours(v) {}
+  NeRV() : MediumModel(method_parts()) {}
   NeRVSettings m_nerv;
 };
 
