@@ -65,10 +65,9 @@ std::vector<float> random_rays(std::uint32_t n, std::mt19937& rng) {
     const auto o = unit(), l = unit();
     float d[3] = {u(rng) - 4 * o[0], u(rng) - 4 * o[1], u(rng) - 4 * o[2]};
     const float len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    const float rec[render::kRayFloats] = {4 * o[0], 4 * o[1], 4 * o[2], 0,        d[0] / len, d[1] / len, d[2] / len,
-                                           0,        4 * l[0], 4 * l[1], 4 * l[2], 0,          600,        600,
-                                           600,      0,        0,        0,        0,          0};
-    rays.insert(rays.end(), rec, rec + render::kRayFloats);
+    const auto rec = render::ray_record({4 * o[0], 4 * o[1], 4 * o[2]}, {d[0] / len, d[1] / len, d[2] / len},
+                                        {4 * l[0], 4 * l[1], 4 * l[2]}, {600, 600, 600});
+    rays.insert(rays.end(), rec.begin(), rec.end());
   }
   return rays;
 }
@@ -147,8 +146,8 @@ bool verify(const Device& dev, Json& report) {
     const std::uint32_t n_env = 32, n = 16, draws = 64;
     render::VolumeRenderer r(dev, {n, -1, 1, false, n_env});
     render::EnvironmentSamples env(dev, EnvironmentLight::uniform({2.0f, 2.0f, 2.0f}, false), n_env);
-    const float rec[render::kRayFloats] = {-3, 0, 0, 0, 1, 0, 0, 0, 0, 5, 0, 0, 1, 1, 1, 0, 0, 0, 0, 0};
-    Buffer<float> rays(dev, std::vector<float>(rec, rec + render::kRayFloats)), t(dev, n), delta(dev, n), color(dev, 3),
+    const auto rec = render::ray_record({-3, 0, 0}, {1, 0, 0}, {0, 5, 0}, {1, 1, 1});
+    Buffer<float> rays(dev, std::vector<float>(rec.begin(), rec.end())), t(dev, n), delta(dev, n), color(dev, 3),
         trans(dev, 1);
     BatchMatrix pos(dev, n, 3), props(dev, n, r.prop_cols()), rad(dev, n, 3), dirs(dev, 1, 3), basis(dev, 1, 0);
     std::vector<float> p(n * r.prop_cols(), 1.0f);

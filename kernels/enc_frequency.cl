@@ -50,14 +50,14 @@ __kernel void frequency_forward(const uint n_tiles, const uint n_dims, __global 
   if (t >= n_tiles) return;
   const uint base = out_col + (INCLUDE_INPUT ? n_dims : 0);
   for (uint d = 0; d < n_dims; ++d) {
-    const float16 x = enc_load(in, t, in_cols, in_col + d);
-    if (INCLUDE_INPUT) enc_store(out, t, out_cols, out_col + d, x);
+    const float16 x = tile_load(in, t, in_cols, in_col + d);
+    if (INCLUDE_INPUT) tile_store(out, t, out_cols, out_col + d, x);
     float16 s, c;
 #pragma unroll
     for (int k = 0; k < N_FREQ; ++k) {
       freq_octave(x, k, &s, &c);
-      enc_store(out, t, out_cols, base + d * 2 * N_FREQ + 2 * k, s);
-      enc_store(out, t, out_cols, base + d * 2 * N_FREQ + 2 * k + 1, c);
+      tile_store(out, t, out_cols, base + d * 2 * N_FREQ + 2 * k, s);
+      tile_store(out, t, out_cols, base + d * 2 * N_FREQ + 2 * k + 1, c);
     }
   }
 }
@@ -71,16 +71,16 @@ __kernel void frequency_backward(const uint n_tiles, const uint n_dims, __global
   if (t >= n_tiles) return;
   const uint base = out_col + (INCLUDE_INPUT ? n_dims : 0);
   for (uint d = 0; d < n_dims; ++d) {
-    const float16 x = enc_load(in, t, in_cols, in_col + d);
-    float16 g = INCLUDE_INPUT ? enc_load(d_out, t, out_cols, out_col + d) : (float16)0.0f;
+    const float16 x = tile_load(in, t, in_cols, in_col + d);
+    float16 g = INCLUDE_INPUT ? tile_load(d_out, t, out_cols, out_col + d) : (float16)0.0f;
     float16 s, c;
 #pragma unroll
     for (int k = 0; k < N_FREQ; ++k) {
       freq_octave(x, k, &s, &c);
-      const float16 gs = enc_load(d_out, t, out_cols, base + d * 2 * N_FREQ + 2 * k);
-      const float16 gc = enc_load(d_out, t, out_cols, base + d * 2 * N_FREQ + 2 * k + 1);
+      const float16 gs = tile_load(d_out, t, out_cols, base + d * 2 * N_FREQ + 2 * k);
+      const float16 gc = tile_load(d_out, t, out_cols, base + d * 2 * N_FREQ + 2 * k + 1);
       g = fma((float16)(M_PI_F * (float)(1 << k)), fma(gs, c, -gc * s), g);
     }
-    enc_store(d_in, t, d_in_cols, in_col + d, g);
+    tile_store(d_in, t, d_in_cols, in_col + d, g);
   }
 }

@@ -151,7 +151,7 @@ inline void gather16x2(__global const float* table, uint16 i, float16* f0, float
 
 inline void load_inputs(__global const float* in, size_t t, uint in_cols, uint in_col, float16* x) {
 #pragma unroll
-  for (int d = 0; d < DIMS; ++d) x[d] = enc_load(in, t, in_cols, in_col + d);
+  for (int d = 0; d < DIMS; ++d) x[d] = tile_load(in, t, in_cols, in_col + d);
 }
 
 __kernel void hashgrid_forward(const uint n_tiles, __global const float* restrict params, const uint param_offset,
@@ -195,7 +195,7 @@ __kernel void hashgrid_forward(const uint n_tiles, __global const float* restric
 #endif
   }
 #pragma unroll
-  for (int f = 0; f < FEATS; ++f) enc_store(out, t, out_cols, out_col + level * FEATS + f, acc[f]);
+  for (int f = 0; f < FEATS; ++f) tile_store(out, t, out_cols, out_col + level * FEATS + f, acc[f]);
 }
 
 // dL/d(table): see the file comment for the ownership scheme. `n` = logical batch size: padding rows
@@ -230,28 +230,28 @@ __kernel void hashgrid_backward_params(const uint n_tiles, const uint n, __globa
       grid_cell(x, level, cell, frac);
 #pragma unroll
       for (int c = 0; c < N_CORNERS; ++c) {
-        uint ids[ENC_TILE];
+        uint ids[RELIT_TILE];
         vstore16(grid_index(cell, level, c), 0, ids);
-        for (int s = 0; s < ENC_TILE; ++s) __builtin_prefetch(table + (size_t)ids[s] * FEATS, 1, 3);
+        for (int s = 0; s < RELIT_TILE; ++s) __builtin_prefetch(table + (size_t)ids[s] * FEATS, 1, 3);
       }
     }
 #endif
     load_inputs(in, t, in_cols, in_col, x);
     grid_cell(x, level, cell, frac);
-    const int16 valid = (int16)((int)t * ENC_TILE) + lane < (int16)((int)n);
+    const int16 valid = (int16)((int)t * RELIT_TILE) + lane < (int16)((int)n);
 #pragma unroll
     for (int f = 0; f < FEATS; ++f)
-      g[f] = select((float16)0.0f, enc_load(d_out, t, out_cols, out_col + level * FEATS + f), valid);
+      g[f] = select((float16)0.0f, tile_load(d_out, t, out_cols, out_col + level * FEATS + f), valid);
 #pragma unroll
     for (int c = 0; c < N_CORNERS; ++c) {
-      uint ids[ENC_TILE];
-      float wg[FEATS][ENC_TILE];
+      uint ids[RELIT_TILE];
+      float wg[FEATS][RELIT_TILE];
       vstore16(grid_index(cell, level, c), 0, ids);
       const float16 w = grid_weight(frac, c);
 #pragma unroll
       for (int f = 0; f < FEATS; ++f) vstore16(w * g[f], 0, wg[f]);
 #pragma unroll
-      for (int s = 0; s < ENC_TILE; ++s) {
+      for (int s = 0; s < RELIT_TILE; ++s) {
         const uint id = ids[s];
         if (N_RANGES > 1 && (id < lo || id >= hi)) continue;
         __global float* entry = table + (size_t)id * FEATS;
@@ -279,7 +279,7 @@ __kernel void hashgrid_backward_input(const uint n_tiles, __global const float* 
     uint16 cell[DIMS];
     grid_cell(x, level, cell, frac);
 #pragma unroll
-    for (int f = 0; f < FEATS; ++f) g[f] = enc_load(d_out, t, out_cols, out_col + level * FEATS + f);
+    for (int f = 0; f < FEATS; ++f) g[f] = tile_load(d_out, t, out_cols, out_col + level * FEATS + f);
 #pragma unroll
     for (int c = 0; c < N_CORNERS; ++c) {
       const uint16 ids = grid_index(cell, level, c);
@@ -299,6 +299,6 @@ __kernel void hashgrid_backward_input(const uint n_tiles, __global const float* 
 #pragma unroll
   for (int d = 0; d < DIMS; ++d) {
     const int16 inside = x[d] > 0.0f && x[d] < 1.0f;
-    enc_store(d_in, t, d_in_cols, in_col + d, select((float16)0.0f, gx[d], inside));
+    tile_store(d_in, t, d_in_cols, in_col + d, select((float16)0.0f, gx[d], inside));
   }
 }

@@ -8,8 +8,8 @@ __kernel void identity_forward(const uint n_tiles, const uint n_dims, const floa
   const size_t t = get_global_id(0);
   if (t >= n_tiles) return;
   for (uint d = 0; d < n_dims; ++d)
-    enc_store(out, t, out_cols, out_col + d,
-              fma((float16)scale, enc_load(in, t, in_cols, in_col + d), (float16)offset));
+    tile_store(out, t, out_cols, out_col + d,
+               fma((float16)scale, tile_load(in, t, in_cols, in_col + d), (float16)offset));
 }
 
 __kernel void identity_backward(const uint n_tiles, const uint n_dims, const float scale,
@@ -18,5 +18,5 @@ __kernel void identity_backward(const uint n_tiles, const uint n_dims, const flo
   const size_t t = get_global_id(0);
   if (t >= n_tiles) return;
   for (uint d = 0; d < n_dims; ++d)
-    enc_store(d_in, t, in_cols, in_col + d, scale * enc_load(d_out, t, out_cols, out_col + d));
+    tile_store(d_in, t, in_cols, in_col + d, scale * tile_load(d_out, t, out_cols, out_col + d));
 }

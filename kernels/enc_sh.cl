@@ -41,8 +41,8 @@ __kernel void sh_forward(const uint n_tiles, __global const float* restrict in, 
                          __global float* restrict out, const uint out_cols, const uint out_col) {
   const size_t t = get_global_id(0);
   if (t >= n_tiles) return;
-  const float16 x = enc_load(in, t, in_cols, in_col), y = enc_load(in, t, in_cols, in_col + 1),
-                z = enc_load(in, t, in_cols, in_col + 2);
+  const float16 x = tile_load(in, t, in_cols, in_col), y = tile_load(in, t, in_cols, in_col + 1),
+                z = tile_load(in, t, in_cols, in_col + 2);
   float16 cm = (float16)1.0f, sm = (float16)0.0f;  // C_m, S_m
 #pragma unroll
   for (int m = 0; m < DEGREE; ++m) {
@@ -65,10 +65,10 @@ __kernel void sh_forward(const uint n_tiles, __global const float* restrict in, 
       q1 = q;
       const float16 nq = sh_norm[l * (l + 1) / 2 + m] * q;
       if (m == 0) {
-        enc_store(out, t, out_cols, out_col + l * l + l, nq);
+        tile_store(out, t, out_cols, out_col + l * l + l, nq);
       } else {
-        enc_store(out, t, out_cols, out_col + l * l + l + m, nq * cm);
-        enc_store(out, t, out_cols, out_col + l * l + l - m, nq * sm);
+        tile_store(out, t, out_cols, out_col + l * l + l + m, nq * cm);
+        tile_store(out, t, out_cols, out_col + l * l + l - m, nq * sm);
       }
     }
   }
@@ -82,8 +82,8 @@ __kernel void sh_backward(const uint n_tiles, __global const float* restrict in,
                           __global float* restrict d_in, const uint d_in_cols) {
   const size_t t = get_global_id(0);
   if (t >= n_tiles) return;
-  const float16 x = enc_load(in, t, in_cols, in_col), y = enc_load(in, t, in_cols, in_col + 1),
-                z = enc_load(in, t, in_cols, in_col + 2);
+  const float16 x = tile_load(in, t, in_cols, in_col), y = tile_load(in, t, in_cols, in_col + 1),
+                z = tile_load(in, t, in_cols, in_col + 2);
   float16 gx = (float16)0.0f, gy = (float16)0.0f, gz = (float16)0.0f;
   float16 cm = (float16)1.0f, sm = (float16)0.0f, cp = (float16)0.0f, sp = (float16)0.0f;  // C_m, S_m, C_{m-1}, S_{m-1}
 #pragma unroll
@@ -115,10 +115,10 @@ __kernel void sh_backward(const uint n_tiles, __global const float* restrict in,
       dq1 = dq;
       const float n = sh_norm[l * (l + 1) / 2 + m];
       if (m == 0) {
-        gz = fma(enc_load(d_out, t, out_cols, out_col + l * l + l), n * dq, gz);
+        gz = fma(tile_load(d_out, t, out_cols, out_col + l * l + l), n * dq, gz);
       } else {
-        const float16 gc = enc_load(d_out, t, out_cols, out_col + l * l + l + m);
-        const float16 gs = enc_load(d_out, t, out_cols, out_col + l * l + l - m);
+        const float16 gc = tile_load(d_out, t, out_cols, out_col + l * l + l + m);
+        const float16 gs = tile_load(d_out, t, out_cols, out_col + l * l + l - m);
         const float16 a = (n * (float)m) * q;  // common factor of the x and y derivatives
         gx = fma(a, fma(gc, cp, gs * sp), gx);
         gy = fma(a, fma(gs, cp, -gc * sp), gy);
@@ -126,7 +126,7 @@ __kernel void sh_backward(const uint n_tiles, __global const float* restrict in,
       }
     }
   }
-  enc_store(d_in, t, d_in_cols, in_col, gx);
-  enc_store(d_in, t, d_in_cols, in_col + 1, gy);
-  enc_store(d_in, t, d_in_cols, in_col + 2, gz);
+  tile_store(d_in, t, d_in_cols, in_col, gx);
+  tile_store(d_in, t, d_in_cols, in_col + 1, gy);
+  tile_store(d_in, t, d_in_cols, in_col + 2, gz);
 }

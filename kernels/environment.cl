@@ -5,8 +5,7 @@
 //   S_env(x) = sum_j p(w_o, w_j; g) V(x, w_j) weight_j,   weight_j = E(w_j) / (pdf(w_j) N_e)   (RGB)
 #include "common.clh"
 #include "environment.clh"
-
-#define RAY_FLOATS 20
+#include "layout.clh"
 
 // Direction j of `iteration` (n x 3 tiled) and its weight (n x 3 tiled), counter-based from (seed, iteration, j).
 // The row coordinate u1 is stratified over the n draws, (j + xi) / n: the set of draws covers the map's rows
@@ -25,28 +24,21 @@ __kernel void env_draw(const uint n, const uint seed, const uint iteration, __gl
   float pdf;
   const float3 d = env_sample(&e, u1, u2, &pdf);
   const float3 w = pdf > 0.0f ? env_radiance(&e, d) / (pdf * (float)n) : (float3)(0.0f);
-  const size_t base = ((size_t)(j / 16) * 3) * 16 + j % 16;
-  dirs[base] = d.x;
-  dirs[base + 16] = d.y;
-  dirs[base + 32] = d.z;
-  weights[base] = w.x;
-  weights[base + 16] = w.y;
-  weights[base + 32] = w.z;
+  store_tiled3(dirs, 3, j, 0, d);
+  store_tiled3(weights, 3, j, 0, w);
 }
 
-// Background slots (floats 16..18) of each ray record: the environment's radiance toward the ray's
+// The background of each ray record: the environment's radiance toward the ray's
 // direction when the environment is visible to the camera, else zero.
 __kernel void env_background(const uint n_rays, const uint visible, __global const float4* restrict texels,
                              const int width, const int height, const float scale, __global float* restrict rays) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
-  __global float* ray = rays + (size_t)r * RAY_FLOATS;
+  __global float* ray = RAY_RECORD(rays, r);
   float3 bg = (float3)(0.0f);
   if (visible) {
     const EnvMap e = env_map(texels, 0, 0, 0, width, height, scale);
-    bg = env_radiance(&e, (float3)(ray[4], ray[5], ray[6]));
+    bg = env_radiance(&e, ray_direction(ray));
   }
-  ray[16] = bg.x;
-  ray[17] = bg.y;
-  ray[18] = bg.z;
+  ray_set_background(ray, bg);
 }

@@ -10,6 +10,7 @@
 //
 // Layouts as render.cl: t, delta per sample (ray-major), positions and props tiled (16-sample tiles).
 #include "common.clh"
+#include "layout.clh"
 
 #ifndef N_COARSE  // set by sample_fine() (relit/method/bi.hpp)
 #define N_COARSE 64
@@ -20,8 +21,6 @@
 #ifndef N_ALL
 #define N_ALL (N_COARSE + N_FINE)
 #endif
-#define RAY_FLOATS 20
-#define TILED_AT(cols, s, f) ((((size_t)(s) / 16) * (cols) + (f)) * 16 + (s) % 16)
 
 __kernel void sample_fine(const uint n_rays, const uint jitter, const uint seed, __global const float* restrict rays,
                           __global const float* restrict t_coarse, __global const float* restrict delta_coarse,
@@ -30,10 +29,10 @@ __kernel void sample_fine(const uint n_rays, const uint jitter, const uint seed,
                           __global float* restrict delta_out, __global float* restrict positions) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
-  __global const float* ray = rays + (size_t)r * RAY_FLOATS;
-  const float3 o = (float3)(ray[0], ray[1], ray[2]);
-  const float3 d = (float3)(ray[4], ray[5], ray[6]);
-  const float tn = ray[3], tf = ray[7];
+  __global const float* ray = RAY_RECORD(rays, r);
+  const float3 o = ray_origin(ray);
+  const float3 d = ray_direction(ray);
+  const float tn = ray_t_near(ray), tf = ray_t_far(ray);
   const float h = (tf - tn) / N_COARSE;
   const size_t c0 = (size_t)r * N_COARSE;
   // Total weight, then one sweep through the strata that places the (sorted) fine samples.
@@ -80,9 +79,7 @@ __kernel void sample_fine(const uint n_rays, const uint jitter, const uint seed,
     }
     t_prev = t;
     const float3 x = fma(t, d, o);
-    positions[TILED_AT(3, s0 + k, 0)] = x.x;
-    positions[TILED_AT(3, s0 + k, 1)] = x.y;
-    positions[TILED_AT(3, s0 + k, 2)] = x.z;
+    store_tiled3(positions, 3, s0 + k, 0, x);
   }
   delta_out[s0 + N_ALL - 1] = tf - lower;
 }

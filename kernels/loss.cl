@@ -11,6 +11,8 @@
 //   LOSS 3  SrgbL2         (s(p) - s(t))^2,  s = the sRGB transfer curve of linear radiance, unclamped above 1
 //                          and odd below 0: s(x) = 12.92 x for |x| <= 0.0031308, else sign(x) (1.055 |x|^(1/2.4) -
 //                          0.055)
+#include "layout.clh"
+
 #ifndef LOSS
 #define LOSS 0
 #endif
@@ -41,7 +43,7 @@ __kernel void loss_forward_backward(const uint batch, const uint cols, const flo
   if (tile >= n_tiles) return;
   // Lane mask: 1 for real samples, 0 for padding rows.
   const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-  const int16 valid = (int16)((int)(tile * 16)) + lane < (int16)((int)batch);
+  const int16 valid = (int16)((int)(tile * RELIT_TILE)) + lane < (int16)((int)batch);
   const float16 mask = select((float16)(0.0f), (float16)(1.0f), valid);
   float16 sum = (float16)(0.0f);
   for (uint f = 0; f < cols; ++f) {

@@ -2,10 +2,8 @@
 // moves between the renderer's per-ray rows and the nn family's tiled matrices, density-grid refresh, and the
 // NaN/Inf guard of a training step.
 //
-// Tiled layout (relit/nn/batch.hpp): element (s, f) of a matrix with `cols` columns at ((s/16)*cols + f)*16 + s%16.
-// Ray records: 20 floats, light position at 8..10 (see render.cl).
-#define RAY_FLOATS 20
-#define TILED_AT(cols, s, f) ((((size_t)(s) / 16) * (cols) + (f)) * 16 + (s) % 16)
+// Ray records and the tiled layout (TILED_AT: element (s, f) of a matrix with `cols` columns): layout.clh.
+#include "layout.clh"
 
 // For sample s of ray s / samples_per_ray at world position x in [-1, 1]^3 (positions: n x 3):
 //   net_pos[:, 0..3]            = (x + 1) / 2               (networks see the box as [0, 1]^3)
@@ -17,25 +15,14 @@ __kernel void light_inputs(const uint n, const uint samples_per_ray, __global co
                            const uint light_col, __global float* restrict vis_in) {
   const uint s = get_global_id(0);
   if (s >= n) return;
-  __global const float* ray = rays + (size_t)(s / samples_per_ray) * RAY_FLOATS;
-  const float3 p = (float3)(ray[8], ray[9], ray[10]);
-  const float3 x = (float3)(positions[TILED_AT(3, s, 0)], positions[TILED_AT(3, s, 1)], positions[TILED_AT(3, s, 2)]);
+  const float3 p = ray_light_position(RAY_RECORD(rays, s / samples_per_ray));
+  const float3 x = tiled3(positions, 3, s, 0);
   const float3 w = normalize(p - x);
   const float3 u = fma(x, 0.5f, 0.5f);
-  net_pos[TILED_AT(3, s, 0)] = u.x;
-  net_pos[TILED_AT(3, s, 1)] = u.y;
-  net_pos[TILED_AT(3, s, 2)] = u.z;
-  if (light_cols) {
-    light_in[TILED_AT(light_cols, s, light_col + 0)] = light_scale * p.x;
-    light_in[TILED_AT(light_cols, s, light_col + 1)] = light_scale * p.y;
-    light_in[TILED_AT(light_cols, s, light_col + 2)] = light_scale * p.z;
-  }
-  vis_in[TILED_AT(6, s, 0)] = u.x;
-  vis_in[TILED_AT(6, s, 1)] = u.y;
-  vis_in[TILED_AT(6, s, 2)] = u.z;
-  vis_in[TILED_AT(6, s, 3)] = w.x;
-  vis_in[TILED_AT(6, s, 4)] = w.y;
-  vis_in[TILED_AT(6, s, 5)] = w.z;
+  store_tiled3(net_pos, 3, s, 0, u);
+  if (light_cols) store_tiled3(light_in, light_cols, s, light_col, light_scale * p);
+  store_tiled3(vis_in, 6, s, 0, u);
+  store_tiled3(vis_in, 6, s, 3, w);
 }
 
 // Row-major (n x cols, rows contiguous) <-> tiled n x cols.

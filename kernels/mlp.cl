@@ -23,6 +23,8 @@
 // The output layer maps WIDTH to N_OUT; output column j gets activation OUT_ACTS[j].
 //
 // Everything is specialised with -D (set by FullyFusedMLP); the defaults make the file build alone.
+#include "layout.clh"
+
 #ifndef N_IN
 #define N_IN 32
 #endif
@@ -78,7 +80,7 @@
 #define ACT_SOFTPLUS 3
 #define ACT_TANH 4
 
-#define TILE 16
+#define TILE RELIT_TILE  // layout.clh
 // Rows of the training workspace's `act` buffer (feature-major, see the forward kernel): x, ones, h_0, h_1, ...
 #define ACT_H0 (N_IN + 1)
 #define GMAX (WIDTH > N_OUT ? WIDTH : N_OUT)

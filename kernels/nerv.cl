@@ -17,20 +17,8 @@
 //
 // Layouts: tiled matrices (16-sample tiles) as render.cl; per-ray vectors as float4 rows.
 #include "geometry.clh"
+#include "layout.clh"
 #include "phase.clh"
-
-#define RAY_FLOATS 20
-#define TILED_AT(cols, s, f) ((((size_t)(s) / 16) * (cols) + (f)) * 16 + (s) % 16)
-
-inline float3 tiled3(__global const float* m, uint cols, uint s, uint f) {
-  return (float3)(m[TILED_AT(cols, s, f)], m[TILED_AT(cols, s, f + 1)], m[TILED_AT(cols, s, f + 2)]);
-}
-
-inline void store_tiled3(__global float* m, uint cols, uint s, uint f, float3 v) {
-  m[TILED_AT(cols, s, f)] = v.x;
-  m[TILED_AT(cols, s, f + 1)] = v.y;
-  m[TILED_AT(cols, s, f + 2)] = v.z;
-}
 
 // d p(mu; g) / dg for p = (1/4pi) (1 - g^2) / (1 + g^2 + 2 g mu)^(3/2).
 inline float hg_dphase_dg(float cos_owi, float g) {
@@ -48,7 +36,7 @@ __kernel void nerv_termination(const uint n_rays, const uint spr, __global const
                                const uint keep_x_t) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
-  __global const float* ray = rays + (size_t)r * RAY_FLOATS;
+  __global const float* ray = RAY_RECORD(rays, r);
   float T = 1.0f, wsum = 0.0f, wt = 0.0f;
   float3 W = (float3)(0.0f);
   for (uint i = 0; i < spr; ++i) {
@@ -62,8 +50,8 @@ __kernel void nerv_termination(const uint n_rays, const uint spr, __global const
   }
   albedo_sum[r] = (float4)(W, wsum);
   if (keep_x_t) return;
-  const float3 o = (float3)(ray[0], ray[1], ray[2]), d = (float3)(ray[4], ray[5], ray[6]);
-  const float tb = wsum > 1e-6f ? wt / wsum : 0.5f * (ray[3] + ray[7]);
+  const float3 o = ray_origin(ray), d = ray_direction(ray);
+  const float tb = wsum > 1e-6f ? wt / wsum : 0.5f * (ray_t_near(ray) + ray_t_far(ray));
   x_t[r] = (float4)(fma(tb, d, o), wsum > 1e-6f ? 1.0f : 0.0f);
 }
 
@@ -98,7 +86,7 @@ __kernel void nerv_bounce_points(const uint n_rays, const uint K, __global const
     store_tiled3(net_pos, 3, q, 0, fma(x_t[q - nq].xyz, 0.5f, 0.5f));
     return;
   }
-  __global const float* ray = rays + (size_t)(q / K) * RAY_FLOATS;
+  __global const float* ray = RAY_RECORD(rays, q / K);
   const float3 w = tiled3(dirs, 3, q % K, 0);
   const float V = vd[TILED_AT(vd_cols, q, 0)], D = vd[TILED_AT(vd_cols, q, 1)];
   const float3 x = clamp(fma(D, w, x_t[q / K].xyz), -1.0f, 1.0f);
@@ -106,7 +94,7 @@ __kernel void nerv_bounce_points(const uint n_rays, const uint K, __global const
   const float3 u = fma(x, 0.5f, 0.5f);
   store_tiled3(net_pos, 3, q, 0, u);
   store_tiled3(light_in, 6, q, 0, u);
-  store_tiled3(light_in, 6, q, 3, normalize((float3)(ray[8], ray[9], ray[10]) - x));
+  store_tiled3(light_in, 6, q, 3, normalize(ray_light_position(ray) - x));
 }
 
 // The light bounce q sends toward x_t per unit albedo a'_q (the bracket of L_k times 1 - V_q), and its
@@ -115,10 +103,10 @@ __kernel void nerv_bounce_points(const uint n_rays, const uint K, __global const
 inline float3 bounce_light(__global const float* ray, float4 xb, float3 w, float g, float vis_l, uint q, uint n_env,
                            __global const float* env_dirs, __global const float* env_weights,
                            __global const float* env_vd, uint vd_cols, float3* dS) {
-  const float3 to_l = (float3)(ray[8], ray[9], ray[10]) - xb.xyz;
+  const float3 to_l = ray_light_position(ray) - xb.xyz;
   const float r2 = fmax(dot(to_l, to_l), 1e-8f);
   const float mu = dot(-w, to_l * rsqrt(r2));
-  const float3 I = (float3)(ray[12], ray[13], ray[14]) * (vis_l / r2);
+  const float3 I = ray_light_intensity(ray) * (vis_l / r2);
   float3 S = hg_phase(mu, g) * I, dS_dg = hg_dphase_dg(mu, g) * I;
   for (uint j = 0; j < n_env; ++j) {
     const float mu_j = dot(-w, tiled3(env_dirs, 3, j, 0));
@@ -143,8 +131,8 @@ __kernel void nerv_indirect(const uint n_rays, const uint K, __global const floa
                             __global float4* restrict indirect) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
-  __global const float* ray = rays + (size_t)r * RAY_FLOATS;
-  const float3 d = (float3)(ray[4], ray[5], ray[6]);
+  __global const float* ray = RAY_RECORD(rays, r);
+  const float3 d = ray_direction(ray);
   const uint nq = n_rays * K;
   const float g_t = g_scale * bprops[TILED_AT(bcols, nq + r, 4)];
   float3 E = (float3)(0.0f);
@@ -179,8 +167,8 @@ __kernel void nerv_indirect_backward(const uint n_rays, const uint K, __global c
                                      __global float* restrict d_bprops, __global float4* restrict dw) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
-  __global const float* ray = rays + (size_t)r * RAY_FLOATS;
-  const float3 d = (float3)(ray[4], ray[5], ray[6]);
+  __global const float* ray = RAY_RECORD(rays, r);
+  const float3 d = ray_direction(ray);
   const float3 dc = (float3)(d_color[3 * r], d_color[3 * r + 1], d_color[3 * r + 2]);
   dw[r] = (float4)(indirect[r].xyz * dc, 0.0f);
   const float3 dE = albedo_sum[r].xyz * dc * (4.0f * M_PI_F / K);

@@ -1,29 +1,19 @@
-// rays.cl: camera rays in the renderer's ray records (see render.cl), for training batches and for images.
+// rays.cl: camera rays in the renderer's ray records (layout.clh), for training batches and for images.
 //
 // Cameras are pinhole, camera-to-world in OpenGL/Blender axes (the camera looks down -z, +y is up, image rows
-// grow downward), 16 floats each: the 3x4 camera-to-world matrix row by row, then fx, fy, cx, cy in pixels.
-// Lights, 8 floats per image: position.xyz, 0, RGB intensity [W/sr], 0.
+// grow downward), and each image has one point light: the camera and light records of layout.clh.
 #include "common.clh"
-
-#define RAY_FLOATS 20
+#include "layout.clh"
 
 inline void write_ray(__global float* ray, __global const float* cam, float px, float py, __global const float* light) {
-  const float x = (px - cam[14]) / cam[12];
-  const float y = -(py - cam[15]) / cam[13];
+  __global const float* m = cam + RELIT_CAMERA_TO_WORLD;
+  const float x = (px - cam[RELIT_CAMERA_CENTRE]) / cam[RELIT_CAMERA_FOCAL];
+  const float y = -(py - cam[RELIT_CAMERA_CENTRE + 1]) / cam[RELIT_CAMERA_FOCAL + 1];
   // world direction = R (x, y, -1)
-  float3 d = (float3)(fma(cam[0], x, fma(cam[1], y, -cam[2])), fma(cam[4], x, fma(cam[5], y, -cam[6])),
-                      fma(cam[8], x, fma(cam[9], y, -cam[10])));
+  float3 d = (float3)(fma(m[0], x, fma(m[1], y, -m[2])), fma(m[4], x, fma(m[5], y, -m[6])),
+                      fma(m[8], x, fma(m[9], y, -m[10])));
   d = normalize(d);
-  ray[0] = cam[3];
-  ray[1] = cam[7];
-  ray[2] = cam[11];
-  ray[3] = 0.0f;
-  ray[4] = d.x;
-  ray[5] = d.y;
-  ray[6] = d.z;
-  ray[7] = 0.0f;
-  for (int i = 0; i < 8; ++i) ray[8 + i] = light[i];
-  ray[16] = ray[17] = ray[18] = ray[19] = 0.0f;  // background: black unless the caller fills it in
+  ray_write(ray, (float3)(m[3], m[7], m[11]), d, light);  // background: black unless the caller fills it in
 }
 
 // A training batch: ray j of iteration `iteration` looks through a pixel centre of an image, both drawn
@@ -39,8 +29,8 @@ __kernel void training_rays(const uint n_rays, const uint seed, const uint itera
   const uint image = h % n_images;
   const uint pixel = relit_hash(h ^ 0x9e3779b9u) % (width * height);
   const uint px = pixel % width, py = pixel / width;
-  write_ray(rays + (size_t)j * RAY_FLOATS, cameras + (size_t)image * 16, px + 0.5f, py + 0.5f,
-            lights + (size_t)image * 8);
+  write_ray(RAY_RECORD(rays, j), cameras + (size_t)image * RELIT_CAMERA_FLOATS, px + 0.5f, py + 0.5f,
+            lights + (size_t)image * RELIT_LIGHT_FLOATS);
   const size_t src = ((size_t)image * width * height + pixel) * 3;
   targets[3 * j] = images[src];
   targets[3 * j + 1] = images[src + 1];
@@ -56,7 +46,7 @@ __kernel void image_rays(const uint n_rays, const uint first, const uint width, 
   const uint j = get_global_id(0);
   if (j >= n_rays) return;
   const uint pixel = first + j;
-  write_ray(rays + (size_t)j * RAY_FLOATS, camera, (pixel % width) + ox, (pixel / width) + oy, light);
+  write_ray(RAY_RECORD(rays, j), camera, (pixel % width) + ox, (pixel / width) + oy, light);
 }
 
 // n directions uniform on the unit sphere from (seed, iteration, k), as an n x 3 tiled matrix.
@@ -67,8 +57,7 @@ __kernel void sphere_directions(const uint n, const uint seed, const uint iterat
   const float z = 1.0f - 2.0f * relit_uniform(h);
   const float phi = 2.0f * M_PI_F * relit_uniform(relit_hash(h ^ 0x68e31da4u));
   const float r = sqrt(fmax(0.0f, 1.0f - z * z));
-  const size_t base = ((size_t)(k / 16) * 3) * 16 + k % 16;
-  dirs[base] = r * cos(phi);
-  dirs[base + 16] = r * sin(phi);
-  dirs[base + 32] = z;
+  TILED(dirs, 3, k, 0) = r * cos(phi);
+  TILED(dirs, 3, k, 1) = r * sin(phi);
+  TILED(dirs, 3, k, 2) = z;
 }

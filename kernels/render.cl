@@ -6,8 +6,7 @@
 // (one lane per sample: PoCL turns them into SIMD, GPUs see 16 coalesced loads); compositing is a short
 // scalar scan per ray.
 //
-// Ray record (RAY_FLOATS = 20 floats, float4-aligned):
-//   [ origin.xyz, t_near ][ direction.xyz, t_far ][ light_pos.xyz, 0 ][ intensity.rgb, 0 ][ background.rgb, 0 ]
+// Ray records and the tiled layout: layout.clh.
 // Sample properties (BatchMatrix columns):
 //   0 sigma  1-3 albedo  4 g  5 visibility (point light)  6.. SH coefficients, channel-major: c[ch * N_SH + j]
 //   ENV_COL + j (= 6 + 3 N_SH + j): visibility toward environment direction j, j < N_ENV
@@ -28,6 +27,7 @@
 #include "brdf.clh"
 #include "common.clh"
 #include "geometry.clh"
+#include "layout.clh"
 
 #ifndef N_SAMPLES
 #define N_SAMPLES 64
@@ -47,18 +47,10 @@
 #ifndef SCATTERING_BRDF
 #define SCATTERING_BRDF 0
 #endif
-#define RAY_FLOATS 20
 #define ENV_COL (6 + 3 * N_SH)
 #define NORMAL_COL (ENV_COL + N_ENV)
 #define PROP_COLS (NORMAL_COL + 3 * SCATTERING_BRDF)
 #define INV_4PI 0.07957747154594767f
-
-// Samples of one tile as float16: 16 consecutive floats of the tiled layout.
-#define TILE_COL(base, tile, cols, f) vload16(0, (base) + ((size_t)(tile) * (cols) + (f)) * 16)
-#define TILE_STORE(v, base, tile, cols, f) vstore16((v), 0, (base) + ((size_t)(tile) * (cols) + (f)) * 16)
-// One element (row r, column f) of a tiled matrix: the K indirect directions (3 columns) and their SH basis
-// values (N_SH columns) come as BatchMatrix objects too.
-#define TILED(base, cols, r, f) (base)[(((size_t)(r) / 16) * (cols) + (f)) * 16 + (r) % 16]
 
 // HG phase and its derivative in g, for mu = w_o . w_i (both pointing away from the sample).
 inline float16 hg_phase16(float16 g, float16 mu) {
@@ -123,16 +115,15 @@ __kernel void sample_rays(const uint n_rays, const uint jitter, const uint seed,
                           __global float* restrict positions) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
-  __global float* ray = rays + (size_t)r * RAY_FLOATS;
-  const float3 o = (float3)(ray[0], ray[1], ray[2]);
-  const float3 d = (float3)(ray[4], ray[5], ray[6]);
+  __global float* ray = RAY_RECORD(rays, r);
+  const float3 o = ray_origin(ray);
+  const float3 d = ray_direction(ray);
   float tn, tf;
   if (box_intersect(o, d, &tn, &tf) && tf > fmax(tn, 0.0f))
     tn = fmax(tn, 0.0f);
   else
     tn = tf = 0.0f;
-  ray[3] = tn;
-  ray[7] = tf;
+  ray_set_t_range(ray, tn, tf);
   const float step = (tf - tn) / N_SAMPLES;
   // Each sample stands for the interval between the midpoints to its neighbours (t_near and t_far at the
   // ends), so the deltas tile [t_near, t_far] exactly: a homogeneous medium transmits exp(-sigma d).
@@ -149,10 +140,7 @@ __kernel void sample_rays(const uint n_rays, const uint jitter, const uint seed,
     }
     t_prev = t;
     const float3 x = fma(t, d, o);
-    const size_t tile = s / 16, lane = s % 16;
-    positions[(tile * 3 + 0) * 16 + lane] = x.x;
-    positions[(tile * 3 + 1) * 16 + lane] = x.y;
-    positions[(tile * 3 + 2) * 16 + lane] = x.z;
+    store_tiled3(positions, 3, s, 0, x);
   }
   delta_out[(size_t)r * N_SAMPLES + N_SAMPLES - 1] = tf - lower;
 }
@@ -171,12 +159,12 @@ typedef struct {
 inline TileLight tile_light(__global const float* ray, __global const float* t, __global const float* props,
                             uint tile) {
   TileLight L;
-  const float3 o = (float3)(ray[0], ray[1], ray[2]);
-  const float3 d = (float3)(ray[4], ray[5], ray[6]);
-  const float3 lp = (float3)(ray[8], ray[9], ray[10]);
-  L.intensity = (float3)(ray[12], ray[13], ray[14]);
+  const float3 o = ray_origin(ray);
+  const float3 d = ray_direction(ray);
+  const float3 lp = ray_light_position(ray);
+  L.intensity = ray_light_intensity(ray);
   L.wo = -d;
-  const float16 ts = vload16(0, t + (size_t)tile * 16);
+  const float16 ts = tile_load(t, tile, 1, 0);  // per-sample vectors are 1-column tiled matrices
   // Vector from each sample to the light, per lane.
   const float16 lx = lp.x - fma(ts, (float16)(d.x), (float16)(o.x));
   const float16 ly = lp.y - fma(ts, (float16)(d.y), (float16)(o.y));
@@ -184,8 +172,8 @@ inline TileLight tile_light(__global const float* ray, __global const float* t, 
   const float16 r2 = fma(lx, lx, fma(ly, ly, lz * lz));
   const float16 inv_r = rsqrt(r2);
   L.mu_l = (L.wo.x * lx + L.wo.y * ly + L.wo.z * lz) * inv_r;
-  L.g = TILE_COL(props, tile, PROP_COLS, 4);
-  L.vis = TILE_COL(props, tile, PROP_COLS, 5);
+  L.g = tile_load(props, tile, PROP_COLS, 4);
+  L.vis = tile_load(props, tile, PROP_COLS, 5);
   L.direct = L.vis / r2;
   return L;
 }
@@ -197,14 +185,14 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
                               __global const float* restrict env_weights, __global float* restrict radiance) {
   const uint tile = get_global_id(0);
   if (tile >= n_tiles) return;
-  const uint ray_index = tile / (N_SAMPLES / 16);
-  const TileLight L = tile_light(rays + (size_t)ray_index * RAY_FLOATS, t, props, tile);
+  const uint ray_index = tile / (N_SAMPLES / RELIT_TILE);
+  const TileLight L = tile_light(RAY_RECORD(rays, ray_index), t, props, tile);
   const float16 p_l = hg_phase16(L.g, L.mu_l) * L.direct;
   float16 s_r = p_l * L.intensity.x, s_g = p_l * L.intensity.y, s_b = p_l * L.intensity.z;
 #if N_ENV > 0
   for (uint j = 0; j < N_ENV; ++j) {
     const float16 pv =
-        hg_phase16(L.g, (float16)(dir_cosine(L.wo, env_dirs, j))) * TILE_COL(props, tile, PROP_COLS, ENV_COL + j);
+        hg_phase16(L.g, (float16)(dir_cosine(L.wo, env_dirs, j))) * tile_load(props, tile, PROP_COLS, ENV_COL + j);
     s_r = fma(pv, TILED(env_weights, 3, j, 0), s_r);
     s_g = fma(pv, TILED(env_weights, 3, j, 1), s_g);
     s_b = fma(pv, TILED(env_weights, 3, j, 2), s_b);
@@ -212,14 +200,14 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
 #endif
 #if N_SH > 0 && INDIRECT_MODE == 1
   float16 c[3 * N_SH], ind[3], unused[3];
-  for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
+  for (uint j = 0; j < 3 * N_SH; ++j) c[j] = tile_load(props, tile, PROP_COLS, 6 + j);
   sh_closed_form(c, sh_basis, ray_index, L.g, ind, unused);
   s_r += ind[0];
   s_g += ind[1];
   s_b += ind[2];
 #elif N_SH > 0
   float16 c[3 * N_SH];
-  for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
+  for (uint j = 0; j < 3 * N_SH; ++j) c[j] = tile_load(props, tile, PROP_COLS, 6 + j);
   float16 i_r = 0.0f, i_g = 0.0f, i_b = 0.0f;
   for (uint k = 0; k < N_DIRS; ++k) {
     const float mu = dir_cosine(L.wo, dirs, k);
@@ -235,9 +223,9 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
   s_g = fma(i_g, w, s_g);
   s_b = fma(i_b, w, s_b);
 #endif
-  TILE_STORE(TILE_COL(props, tile, PROP_COLS, 1) * s_r, radiance, tile, 3, 0);
-  TILE_STORE(TILE_COL(props, tile, PROP_COLS, 2) * s_g, radiance, tile, 3, 1);
-  TILE_STORE(TILE_COL(props, tile, PROP_COLS, 3) * s_b, radiance, tile, 3, 2);
+  tile_store(radiance, tile, 3, 0, tile_load(props, tile, PROP_COLS, 1) * s_r);
+  tile_store(radiance, tile, 3, 1, tile_load(props, tile, PROP_COLS, 2) * s_g);
+  tile_store(radiance, tile, 3, 2, tile_load(props, tile, PROP_COLS, 3) * s_b);
 }
 
 // Given dL/d(radiance): dL/d(albedo), dL/dg and dL/d(SH coefficients) into d_props (columns 1..4 and 6..);
@@ -251,12 +239,12 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
                                        __global const float* restrict d_radiance, __global float* restrict d_props) {
   const uint tile = get_global_id(0);
   if (tile >= n_tiles) return;
-  const uint ray_index = tile / (N_SAMPLES / 16);
-  const TileLight L = tile_light(rays + (size_t)ray_index * RAY_FLOATS, t, props, tile);
-  const float16 ar = TILE_COL(props, tile, PROP_COLS, 1), ag = TILE_COL(props, tile, PROP_COLS, 2),
-                ab = TILE_COL(props, tile, PROP_COLS, 3);
-  const float16 dr = TILE_COL(d_radiance, tile, 3, 0), dg = TILE_COL(d_radiance, tile, 3, 1),
-                db = TILE_COL(d_radiance, tile, 3, 2);
+  const uint ray_index = tile / (N_SAMPLES / RELIT_TILE);
+  const TileLight L = tile_light(RAY_RECORD(rays, ray_index), t, props, tile);
+  const float16 ar = tile_load(props, tile, PROP_COLS, 1), ag = tile_load(props, tile, PROP_COLS, 2),
+                ab = tile_load(props, tile, PROP_COLS, 3);
+  const float16 dr = tile_load(d_radiance, tile, 3, 0), dg = tile_load(d_radiance, tile, 3, 1),
+                db = tile_load(d_radiance, tile, 3, 2);
   // Upstream gradient per channel on S (radiance = a ⊙ S).
   const float16 er = dr * ar, eg = dg * ag, eb = db * ab;
   const float16 dir_common = L.direct;
@@ -267,19 +255,19 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
 #if N_ENV > 0
   for (uint j = 0; j < N_ENV; ++j) {
     const float16 mu = (float16)(dir_cosine(L.wo, env_dirs, j));
-    const float16 v = TILE_COL(props, tile, PROP_COLS, ENV_COL + j);
+    const float16 v = tile_load(props, tile, PROP_COLS, ENV_COL + j);
     const float wr = TILED(env_weights, 3, j, 0), wg = TILED(env_weights, 3, j, 1), wb = TILED(env_weights, 3, j, 2);
     const float16 pv = hg_phase16(L.g, mu) * v;
     s_r = fma(pv, wr, s_r);
     s_g = fma(pv, wg, s_g);
     s_b = fma(pv, wb, s_b);
     d_g = fma(hg_dphase16_dg(L.g, mu) * v, fma(er, wr, fma(eg, wg, eb * wb)), d_g);
-    TILE_STORE((float16)(0.0f), d_props, tile, PROP_COLS, ENV_COL + j);
+    tile_store(d_props, tile, PROP_COLS, ENV_COL + j, (float16)(0.0f));
   }
 #endif
 #if N_SH > 0 && INDIRECT_MODE == 1
   float16 c[3 * N_SH], ind[3], dind[3];
-  for (uint j = 0; j < 3 * N_SH; ++j) c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
+  for (uint j = 0; j < 3 * N_SH; ++j) c[j] = tile_load(props, tile, PROP_COLS, 6 + j);
   sh_closed_form(c, sh_basis, ray_index, L.g, ind, dind);
   s_r += ind[0];
   s_g += ind[1];
@@ -291,14 +279,14 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
       float16 gl = 1.0f;
       for (uint l = 0, j = 0; j < N_SH; ++l, gl *= L.g)
         for (uint m = 0; m < 2 * l + 1; ++m, ++j)
-          TILE_STORE(e[ch] * gl * TILED(sh_basis, N_SH, ray_index, j), d_props, tile, PROP_COLS, 6 + ch * N_SH + j);
+          tile_store(d_props, tile, PROP_COLS, 6 + ch * N_SH + j, e[ch] * gl * TILED(sh_basis, N_SH, ray_index, j));
     }
   }
 #elif N_SH > 0
   float16 c[3 * N_SH];
   float16 dc[3 * N_SH];
   for (uint j = 0; j < 3 * N_SH; ++j) {
-    c[j] = TILE_COL(props, tile, PROP_COLS, 6 + j);
+    c[j] = tile_load(props, tile, PROP_COLS, 6 + j);
     dc[j] = 0.0f;
   }
   const float w = 4.0f * M_PI_F / N_DIRS;
@@ -328,13 +316,13 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   s_r = fma(i_r, w, s_r);
   s_g = fma(i_g, w, s_g);
   s_b = fma(i_b, w, s_b);
-  for (uint j = 0; j < 3 * N_SH; ++j) TILE_STORE(dc[j], d_props, tile, PROP_COLS, 6 + j);
+  for (uint j = 0; j < 3 * N_SH; ++j) tile_store(d_props, tile, PROP_COLS, 6 + j, dc[j]);
 #endif
-  TILE_STORE(dr * s_r, d_props, tile, PROP_COLS, 1);
-  TILE_STORE(dg * s_g, d_props, tile, PROP_COLS, 2);
-  TILE_STORE(db * s_b, d_props, tile, PROP_COLS, 3);
-  TILE_STORE(d_g, d_props, tile, PROP_COLS, 4);
-  TILE_STORE((float16)(0.0f), d_props, tile, PROP_COLS, 5);
+  tile_store(d_props, tile, PROP_COLS, 1, dr * s_r);
+  tile_store(d_props, tile, PROP_COLS, 2, dg * s_g);
+  tile_store(d_props, tile, PROP_COLS, 3, db * s_b);
+  tile_store(d_props, tile, PROP_COLS, 4, d_g);
+  tile_store(d_props, tile, PROP_COLS, 5, (float16)(0.0f));
 }
 
 // ---- per-sample radiance, scattering "brdf" (solids, DESIGN §4.4) -------------------------------------------
@@ -358,24 +346,21 @@ typedef struct {
 inline SurfacePoint surface_point(__global const float* ray, __global const float* t, __global const float* props,
                                   uint s) {
   SurfacePoint p;
-  const float3 o = (float3)(ray[0], ray[1], ray[2]);
-  const float3 d = (float3)(ray[4], ray[5], ray[6]);
-  const float3 to_light = (float3)(ray[8], ray[9], ray[10]) - fma((float3)(t[s]), d, o);
+  const float3 o = ray_origin(ray);
+  const float3 d = ray_direction(ray);
+  const float3 to_light = ray_light_position(ray) - fma((float3)(t[s]), d, o);
   const float r2 = dot(to_light, to_light);
   p.wl = to_light * rsqrt(r2);
-  p.direct = (float3)(ray[12], ray[13], ray[14]) * (TILED(props, PROP_COLS, s, 5) / r2);
-  const float3 m = (float3)(TILED(props, PROP_COLS, s, NORMAL_COL), TILED(props, PROP_COLS, s, NORMAL_COL + 1),
-                            TILED(props, PROP_COLS, s, NORMAL_COL + 2));
+  p.direct = ray_light_intensity(ray) * (TILED(props, PROP_COLS, s, 5) / r2);
+  const float3 m = tiled3(props, PROP_COLS, s, NORMAL_COL);
   const float len2 = dot(m, m);
   p.inv_len = len2 > 0.0f ? rsqrt(len2) : 0.0f;
   p.brdf = brdf_view(m * p.inv_len, -d, TILED(props, PROP_COLS, s, 4));
-  p.albedo = (float3)(TILED(props, PROP_COLS, s, 1), TILED(props, PROP_COLS, s, 2), TILED(props, PROP_COLS, s, 3));
+  p.albedo = tiled3(props, PROP_COLS, s, 1);
   return p;
 }
 
-inline float3 tiled_dir(__global const float* dirs, uint k) {
-  return (float3)(TILED(dirs, 3, k, 0), TILED(dirs, 3, k, 1), TILED(dirs, 3, k, 2));
-}
+inline float3 tiled_dir(__global const float* dirs, uint k) { return tiled3(dirs, 3, k, 0); }
 
 #if N_SH > 0
 // sum_j c_j Y_j(w_k) per channel, before the clamp.
@@ -395,7 +380,7 @@ __kernel void render_radiance_brdf(const uint n, __global const float* restrict 
                                    __global const float* restrict env_weights, __global float* restrict radiance) {
   const uint s = get_global_id(0);
   if (s >= n) return;
-  const SurfacePoint p = surface_point(rays + (size_t)(s / N_SAMPLES) * RAY_FLOATS, t, props, s);
+  const SurfacePoint p = surface_point(RAY_RECORD(rays, s / N_SAMPLES), t, props, s);
   float3 diffuse = 0.0f, spec = 0.0f;  // sum of diffuse cos L, of spec cos L
   BrdfTerms b = brdf_at(&p.brdf, p.wl, 0);
   float c_i = fmax(dot(p.brdf.n, p.wl), 0.0f);
@@ -427,9 +412,7 @@ __kernel void render_radiance_brdf(const uint n, __global const float* restrict 
   }
 #endif
   const float3 rad = fma(p.albedo, diffuse, spec);
-  TILED(radiance, 3, s, 0) = rad.x;
-  TILED(radiance, 3, s, 1) = rad.y;
-  TILED(radiance, 3, s, 2) = rad.z;
+  store_tiled3(radiance, 3, s, 0, rad);
 }
 
 // One light term's share of the backward pass: e = dL/d(radiance), L the term's incident light. Adds the
@@ -457,8 +440,8 @@ __kernel void render_radiance_brdf_backward(
     __global const float* restrict d_radiance, __global float* restrict d_props) {
   const uint s = get_global_id(0);
   if (s >= n) return;
-  const SurfacePoint p = surface_point(rays + (size_t)(s / N_SAMPLES) * RAY_FLOATS, t, props, s);
-  const float3 e = (float3)(TILED(d_radiance, 3, s, 0), TILED(d_radiance, 3, s, 1), TILED(d_radiance, 3, s, 2));
+  const SurfacePoint p = surface_point(RAY_RECORD(rays, s / N_SAMPLES), t, props, s);
+  const float3 e = tiled3(d_radiance, 3, s, 0);
   float3 diffuse = 0.0f, d_n = 0.0f;
   float d_r = 0.0f;
   brdf_term_backward(&p, p.wl, p.direct, e, &diffuse, &d_r, &d_n);
@@ -495,23 +478,15 @@ __kernel void render_radiance_brdf_backward(
   for (uint j = 0; j < 3 * N_SH; ++j) TILED(d_props, PROP_COLS, s, 6 + j) = dc[j];
 #endif
   const float3 d_albedo = e * diffuse;
-  TILED(d_props, PROP_COLS, s, 1) = d_albedo.x;
-  TILED(d_props, PROP_COLS, s, 2) = d_albedo.y;
-  TILED(d_props, PROP_COLS, s, 3) = d_albedo.z;
+  store_tiled3(d_props, PROP_COLS, s, 1, d_albedo);
   TILED(d_props, PROP_COLS, s, 4) = d_r;
   TILED(d_props, PROP_COLS, s, 5) = 0.0f;
   // Through n = n_raw / |n_raw|: (I - n n^T) / |n_raw|.
   const float3 d_m = (d_n - p.brdf.n * dot(p.brdf.n, d_n)) * p.inv_len;
-  TILED(d_props, PROP_COLS, s, NORMAL_COL) = d_m.x;
-  TILED(d_props, PROP_COLS, s, NORMAL_COL + 1) = d_m.y;
-  TILED(d_props, PROP_COLS, s, NORMAL_COL + 2) = d_m.z;
+  store_tiled3(d_props, PROP_COLS, s, NORMAL_COL, d_m);
 }
 
 // ---- compositing ------------------------------------------------------------------------------------------
-
-inline float tiled_at(__global const float* m, uint cols, size_t s, uint f) {
-  return m[((s / 16) * cols + f) * 16 + s % 16];
-}
 
 // color = sum_i T_i alpha_i radiance_i + T_N background, alpha_i = 1 - exp(-sigma_i delta_i).
 // Also writes the final transmittance per ray (alpha = 1 - T_N is the pixel's opacity).
@@ -524,14 +499,12 @@ __kernel void composite(const uint n_rays, __global const float* restrict rays, 
   float3 c = 0.0f;
   for (uint i = 0; i < N_SAMPLES; ++i) {
     const size_t s = (size_t)r * N_SAMPLES + i;
-    const float alpha = 1.0f - exp(-tiled_at(props, PROP_COLS, s, 0) * delta[s]);
+    const float alpha = 1.0f - exp(-TILED(props, PROP_COLS, s, 0) * delta[s]);
     const float w = T * alpha;
-    c = fma((float3)(w),
-            (float3)(tiled_at(radiance, 3, s, 0), tiled_at(radiance, 3, s, 1), tiled_at(radiance, 3, s, 2)), c);
+    c = fma((float3)(w), tiled3(radiance, 3, s, 0), c);
     T *= 1.0f - alpha;
   }
-  __global const float* ray = rays + (size_t)r * RAY_FLOATS;
-  c = fma((float3)(T), (float3)(ray[16], ray[17], ray[18]), c);
+  c = fma((float3)(T), ray_background(RAY_RECORD(rays, r)), c);
   vstore3(c, r, color);
   transmittance[r] = T;
 }
@@ -553,18 +526,14 @@ __kernel void composite_backward(const uint n_rays, __global const float* restri
   for (uint i = 0; i < N_SAMPLES; ++i) {
     const size_t s = (size_t)r * N_SAMPLES + i;
     const float d = delta[s];
-    const float alpha = 1.0f - exp(-tiled_at(props, PROP_COLS, s, 0) * d);
+    const float alpha = 1.0f - exp(-TILED(props, PROP_COLS, s, 0) * d);
     const float w = T * alpha;
-    const float3 ci = (float3)(tiled_at(radiance, 3, s, 0), tiled_at(radiance, 3, s, 1), tiled_at(radiance, 3, s, 2));
+    const float3 ci = tiled3(radiance, 3, s, 0);
     prefix = fma((float3)(w), ci, prefix);
     const float3 suffix = C - prefix;  // sum_{i>k} w_i c_i + T_N bg
     const float3 dsigma3 = d * (T * (1.0f - alpha) * ci - suffix);
-    const size_t base = (s / 16) * PROP_COLS * 16 + s % 16;
-    d_props[base] = dot(dsigma3, dC);
-    const size_t rbase = (s / 16) * 3 * 16 + s % 16;
-    d_radiance[rbase] = w * dC.x;
-    d_radiance[rbase + 16] = w * dC.y;
-    d_radiance[rbase + 32] = w * dC.z;
+    TILED(d_props, PROP_COLS, s, 0) = dot(dsigma3, dC);
+    store_tiled3(d_radiance, 3, s, 0, w * dC);
     T *= 1.0f - alpha;
   }
 }
@@ -573,5 +542,25 @@ __kernel void composite_backward(const uint n_rays, __global const float* restri
 __kernel void view_directions(const uint n_rays, __global const float* restrict rays, __global float* restrict out) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
-  for (int a = 0; a < 3; ++a) TILED(out, 3, r, a) = rays[(size_t)r * RAY_FLOATS + 4 + a];
+  store_tiled3(out, 3, r, 0, ray_direction(RAY_RECORD(rays, r)));
+}
+
+// Channel-major RGB blocks of `per_channel` columns, scaled per sample by its ray's light intensity:
+// dst[ch * per_channel + j] = I_ch(ray(s)) * src[ch * per_channel + j]. Indirect light is linear in the light's
+// intensity, so the SH head predicts light per unit intensity (DESIGN §4.3). `scale` multiplies every value (the
+// model's intensity normalisation). One work-item per tile: its 16 samples belong to one ray.
+__kernel void scale_rgb_by_ray_intensity(const uint n_tiles, const uint per_channel, const float scale,
+                                         __global const float* restrict rays, __global const float* restrict src,
+                                         const uint src_cols, const uint src_col, __global float* restrict dst,
+                                         const uint dst_cols, const uint dst_col) {
+  const size_t t = get_global_id(0);
+  if (t >= n_tiles) return;
+  __global const float* ray = RAY_RECORD(rays, (t * RELIT_TILE) / N_SAMPLES);
+  for (uint ch = 0; ch < 3; ++ch) {
+    const float intensity = scale * ray[RELIT_RAY_LIGHT_INTENSITY + ch];
+    for (uint j = 0; j < per_channel; ++j) {
+      const uint c = ch * per_channel + j;
+      tile_store(dst, t, dst_cols, dst_col + c, intensity * tile_load(src, t, src_cols, src_col + c));
+    }
+  }
 }

@@ -11,7 +11,7 @@
 #ifndef MARCH_STEPS
 #define MARCH_STEPS 64
 #endif
-#define RAY_FLOATS 20
+#include "layout.clh"
 
 // Trilinear lookup (as grid_lookup) at 16 points at once: the coordinate math runs on float16 lanes, the 8
 // corner values are gathered lane by lane.
@@ -65,9 +65,9 @@ inline float16 march_depth16(__global const float* grid, int4 dims, float16 px, 
 }
 
 inline void load_positions16(__global const float* positions, uint tile, float16* px, float16* py, float16* pz) {
-  *px = vload16(0, positions + ((size_t)tile * 3 + 0) * 16);
-  *py = vload16(0, positions + ((size_t)tile * 3 + 1) * 16);
-  *pz = vload16(0, positions + ((size_t)tile * 3 + 2) * 16);
+  *px = tile_load(positions, tile, 3, 0);
+  *py = tile_load(positions, tile, 3, 1);
+  *pz = tile_load(positions, tile, 3, 2);
 }
 
 // One work-item per tile of 16 samples (the samples of a tile belong to one ray: N_SAMPLES % 16 == 0), one
@@ -80,12 +80,12 @@ __kernel void march_to_light(const uint n_tiles, __global const float* restrict 
   if (tile >= n_tiles) return;
   float16 px, py, pz;
   load_positions16(positions, tile, &px, &py, &pz);
-  __global const float* ray = rays + (size_t)((tile * 16) / N_SAMPLES) * RAY_FLOATS;
-  const float16 lx = ray[8] - px, ly = ray[9] - py, lz = ray[10] - pz;
+  const float3 lp = ray_light_position(RAY_RECORD(rays, (tile * RELIT_TILE) / N_SAMPLES));
+  const float16 lx = lp.x - px, ly = lp.y - py, lz = lp.z - pz;
   const float16 light_distance = sqrt(fma(lx, lx, fma(ly, ly, lz * lz)));
   const float16 tau = march_depth16(grid, (int4)(nx, ny, nz, 0), px, py, pz, lx / light_distance, ly / light_distance,
                                     lz / light_distance, light_distance);
-  vstore16(exp(-depth_scale * tau), 0, visibility + (size_t)tile * 16);
+  tile_store(visibility, tile, 1, 0, exp(-depth_scale * tau));
 }
 
 // V from every sample toward every one of n_dirs directions (dirs: n_dirs x 3 tiled), to the exit of the box:
@@ -98,11 +98,10 @@ __kernel void march_directions(const uint n_tiles, const uint n_dirs, __global c
   const uint item = get_global_id(0);
   if (item >= n_tiles * n_dirs) return;
   const uint tile = item / n_dirs, k = item % n_dirs;
-  const size_t dbase = (size_t)(k / 16) * 48 + k % 16;
-  const float3 w = (float3)(dirs[dbase], dirs[dbase + 16], dirs[dbase + 32]);
+  const float3 w = tiled3(dirs, 3, k, 0);
   float16 px, py, pz;
   load_positions16(positions, tile, &px, &py, &pz);
   const float16 tau = march_depth16(grid, (int4)(nx, ny, nz, 0), px, py, pz, (float16)w.x, (float16)w.y, (float16)w.z,
                                     (float16)INFINITY);
-  vstore16(exp(-tau), 0, out + ((size_t)tile * n_dirs + k) * 16);
+  tile_store(out, tile, n_dirs, k, exp(-tau));
 }

@@ -274,7 +274,8 @@ TEST(Bi, FineSamplesFollowTheCoarseWeights) {
   const auto pos_h = pos.download_row_major();
   std::vector<double> cdf_values;
   for (std::uint32_t r = 0; r < n_rays; ++r) {
-    const double tn = r_host[r * render::kRayFloats + 3], tfar = r_host[r * render::kRayFloats + 7];
+    const double tn = r_host[r * render::kRayFloats + render::kRayTNear],
+                 tfar = r_host[r * render::kRayFloats + render::kRayTFar];
     if (tfar <= tn) continue;
     std::vector<double> w(nc);
     double T = 1, total = 0;
@@ -302,7 +303,8 @@ TEST(Bi, FineSamplesFollowTheCoarseWeights) {
       sum += d_h[r * na + k];
       for (int a = 0; a < 3; ++a)
         ASSERT_NEAR(pos_h[(std::size_t(r) * na + k) * 3 + a],
-                    r_host[r * render::kRayFloats + a] + t_h[r * na + k] * r_host[r * render::kRayFloats + 4 + a],
+                    r_host[r * render::kRayFloats + render::kRayOrigin + a] +
+                        t_h[r * na + k] * r_host[r * render::kRayFloats + render::kRayDirection + a],
                     1e-4);
     }
     EXPECT_NEAR(sum, tfar - tn, 1e-4);
@@ -378,11 +380,12 @@ double nerv_indirect_reference(const NervInputs& in, const std::vector<double>& 
       double w[3], x[3], to_l[3], r2 = 0, mu_l = 0, mu_t = 0;
       for (int a = 0; a < 3; ++a) w[a] = in.dirs[k * 3 + a];
       for (int a = 0; a < 3; ++a) x[a] = std::clamp(in.x_t[r * 3 + a] + in.vd[q * 2 + 1] * w[a], -1.0, 1.0);
-      for (int a = 0; a < 3; ++a) to_l[a] = ray[8 + a] - x[a], r2 += to_l[a] * to_l[a];
-      for (int a = 0; a < 3; ++a) mu_l += -w[a] * to_l[a] / std::sqrt(r2), mu_t += -ray[4 + a] * w[a];
+      for (int a = 0; a < 3; ++a) to_l[a] = ray[render::kRayLightPosition + a] - x[a], r2 += to_l[a] * to_l[a];
+      for (int a = 0; a < 3; ++a)
+        mu_l += -w[a] * to_l[a] / std::sqrt(r2), mu_t += -ray[render::kRayDirection + a] * w[a];
       const double g = in.g_scale * bprops[q * in.pc + 4];
       double S[3];
-      for (int c = 0; c < 3; ++c) S[c] = hg(mu_l, g) * in.light_vd[q * 2] / r2 * ray[12 + c];
+      for (int c = 0; c < 3; ++c) S[c] = hg(mu_l, g) * in.light_vd[q * 2] / r2 * ray[render::kRayLightIntensity + c];
       for (std::uint32_t j = 0; j < in.n_env; ++j) {
         double mu_j = 0;
         for (int a = 0; a < 3; ++a) mu_j += -w[a] * in.env_dirs[j * 3 + a];
@@ -475,7 +478,8 @@ TEST(NeRV, IndirectBounceKernelsMatchAHostReferenceAndFiniteDifferences) {
       T *= 1 - a;
     }
     for (int a = 0; a < 3; ++a) {
-      in.x_t.push_back(in.rays[r * render::kRayFloats + a] + wt / ws * in.rays[r * render::kRayFloats + 4 + a]);
+      in.x_t.push_back(in.rays[r * render::kRayFloats + render::kRayOrigin + a] +
+                       wt / ws * in.rays[r * render::kRayFloats + render::kRayDirection + a]);
       EXPECT_NEAR(xt_dev[r * 4 + a], in.x_t.back(), 1e-4);
     }
   }

@@ -124,7 +124,7 @@ TEST(EnvironmentSamples, BackgroundIsTheMapRadianceWhenVisibleElseZero) {
   for (std::uint32_t r = 0; r < n_rays; ++r) {
     float d[3] = {nd(rng), nd(rng), nd(rng)};
     const float len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    for (int a = 0; a < 3; ++a) rays[r * kRayFloats + 4 + a] = d[a] / len;
+    for (int a = 0; a < 3; ++a) rays[r * kRayFloats + render::kRayDirection + a] = d[a] / len;
   }
   for (const bool visible : {true, false}) {
     const EnvironmentLight light = test_sky(visible);
@@ -135,13 +135,15 @@ TEST(EnvironmentSamples, BackgroundIsTheMapRadianceWhenVisibleElseZero) {
     int mismatched = 0;
     for (std::uint32_t r = 0; r < n_rays; ++r) {
       const float* rec = &got[r * kRayFloats];
-      const Float3 e = light.radiance({rec[4], rec[5], rec[6]});
+      const Float3 e =
+          light.radiance({rec[render::kRayDirection], rec[render::kRayDirection + 1], rec[render::kRayDirection + 2]});
       for (int c = 0; c < 3; ++c) {
         const float expected = visible ? e[c] : 0.0f;
-        if (std::abs(rec[16 + c] - expected) > 1e-5f * expected) ++mismatched;
+        if (std::abs(rec[render::kRayBackground + c] - expected) > 1e-5f * expected) ++mismatched;
       }
-      for (int f = 0; f < 16; ++f) ASSERT_EQ(rec[f], rays[r * kRayFloats + f]) << "ray " << r << " float " << f;
-      ASSERT_EQ(rec[19], 7.0f);
+      for (std::uint32_t f = 0; f < render::kRayBackground; ++f)
+        ASSERT_EQ(rec[f], rays[r * kRayFloats + f]) << "ray " << r << " float " << f;
+      ASSERT_EQ(rec[render::kRayBackground + 3], 7.0f);
     }
     EXPECT_LE(mismatched, 3) << "visible " << visible;  // a direction on a texel border may round either way
   }

@@ -45,21 +45,23 @@ TEST(Rays, ImageRaysMatchThePinholeModel) {
     const Eigen::Vector3d ref = reference_dir(cam, p % w + 0.5, p / w + 0.5);
     const auto host = cam.direction(p % w + 0.5, p / w + 0.5);  // the scene's own camera model agrees
     for (int k = 0; k < 3; ++k) {
-      ASSERT_NEAR(r[p * kRayFloats + 4 + k], ref[k], 1e-6) << "pixel " << p;
+      ASSERT_NEAR(r[p * kRayFloats + render::kRayDirection + k], ref[k], 1e-6) << "pixel " << p;
       ASSERT_NEAR(host[k], ref[k], 1e-6) << "pixel " << p;
     }
-    ASSERT_EQ(r[p * kRayFloats + 0], 3.0f);
-    ASSERT_EQ(r[p * kRayFloats + 12], 100.0f);
-    ASSERT_EQ(r[p * kRayFloats + 10], 3.0f);
+    ASSERT_EQ(r[p * kRayFloats + render::kRayOrigin], 3.0f);
+    ASSERT_EQ(r[p * kRayFloats + render::kRayLightIntensity], 100.0f);
+    ASSERT_EQ(r[p * kRayFloats + render::kRayLightPosition + 2], 3.0f);
   }
   // The centre pixel (odd size) looks straight at the target; the left edge is fov/2 away from it.
   const std::uint32_t centre = (h / 2) * w + w / 2;
   const Eigen::Vector3d to_target = -Eigen::Vector3d(3, -2, 1.5).normalized();
-  Eigen::Vector3d dc(r[centre * kRayFloats + 4], r[centre * kRayFloats + 5], r[centre * kRayFloats + 6]);
+  Eigen::Vector3d dc(r[centre * kRayFloats + render::kRayDirection], r[centre * kRayFloats + render::kRayDirection + 1],
+                     r[centre * kRayFloats + render::kRayDirection + 2]);
   EXPECT_NEAR(dc.dot(to_target), 1.0, 1e-6);
   const double edge = std::atan((0.5 * w - 0.5) / cam.focal());
   const std::uint32_t left = (h / 2) * w;
-  Eigen::Vector3d dl(r[left * kRayFloats + 4], r[left * kRayFloats + 5], r[left * kRayFloats + 6]);
+  Eigen::Vector3d dl(r[left * kRayFloats + render::kRayDirection], r[left * kRayFloats + render::kRayDirection + 1],
+                     r[left * kRayFloats + render::kRayDirection + 2]);
   EXPECT_NEAR(std::acos(dl.dot(to_target)), edge, 1e-5);
 }
 
@@ -74,7 +76,8 @@ TEST(Rays, ImageRaysPassThroughTheGivenPointOfEachPixel) {
     const auto r = rays.read();
     for (std::uint32_t p = 0; p < w * h; ++p) {
       const Eigen::Vector3d ref = reference_dir(cam, p % w + off[0], p / w + off[1]);
-      for (int k = 0; k < 3; ++k) ASSERT_NEAR(r[p * kRayFloats + 4 + k], ref[k], 1e-6) << "pixel " << p;
+      for (int k = 0; k < 3; ++k)
+        ASSERT_NEAR(r[p * kRayFloats + render::kRayDirection + k], ref[k], 1e-6) << "pixel " << p;
     }
   }
   EXPECT_THROW(render::image_rays(d, cam, light, 0, w * h, rays, {0.5f, 1.5f}), InvalidArgument);
@@ -114,8 +117,8 @@ TEST(Rays, TrainingBatchesLookUpTheirPixelsCoverAllImagesAndAreReproducible) {
     seen_images.insert(image);
     for (int c = 0; c < 3; ++c) ASSERT_EQ(t[3 * j + c], float(image * 1000 + pixel * 3 + c));
     const Eigen::Vector3d ref = reference_dir(cams[image], pixel % w + 0.5, pixel / w + 0.5);
-    for (int k = 0; k < 3; ++k) ASSERT_NEAR(r[j * kRayFloats + 4 + k], ref[k], 1e-6);
-    ASSERT_EQ(r[j * kRayFloats + 12], float(10 * image));
+    for (int k = 0; k < 3; ++k) ASSERT_NEAR(r[j * kRayFloats + render::kRayDirection + k], ref[k], 1e-6);
+    ASSERT_EQ(r[j * kRayFloats + render::kRayLightIntensity], float(10 * image));
   }
   EXPECT_EQ(seen_images.size(), n_images);
   source.training_batch(n_rays, 7, 3, rays2, t2, ids2);

@@ -19,6 +19,12 @@ using V3 = Eigen::Vector3d;
 
 namespace {
 
+// The point light's position in a ray record.
+V3 light_position(const float* ray) {
+  const auto p = render::ray_field3(ray, render::kRayLightPosition);
+  return V3(p[0], p[1], p[2]);
+}
+
 double lookup(const std::vector<float>& g, int n, const V3& p) {
   V3 u = ((p.array() + 1) * 0.5 * n - 0.5).matrix();
   for (int a = 0; a < 3; ++a) u[a] = std::min(std::max(u[a], 0.0), n - 1.0);
@@ -65,27 +71,10 @@ Setup run(const Device& d, const std::vector<float>& grid, int n, std::uint32_t 
     const V3 o = 4 * V3(u(rng), u(rng), u(rng)).normalized();
     const V3 dir = (V3(0.3 * u(rng), 0.3 * u(rng), 0.3 * u(rng)) - o).normalized();
     const V3 light = (3 + u(rng)) * V3(u(rng), u(rng), u(rng)).normalized();
-    const float rec[kRayFloats] = {float(o.x()),
-                                   float(o.y()),
-                                   float(o.z()),
-                                   0,
-                                   float(dir.x()),
-                                   float(dir.y()),
-                                   float(dir.z()),
-                                   0,
-                                   float(light.x()),
-                                   float(light.y()),
-                                   float(light.z()),
-                                   0,
-                                   1,
-                                   1,
-                                   1,
-                                   0,
-                                   0,
-                                   0,
-                                   0,
-                                   0};
-    rays.insert(rays.end(), rec, rec + kRayFloats);
+    const auto rec =
+        render::ray_record({float(o.x()), float(o.y()), float(o.z())}, {float(dir.x()), float(dir.y()), float(dir.z())},
+                           {float(light.x()), float(light.y()), float(light.z())}, {1, 1, 1});
+    rays.insert(rays.end(), rec.begin(), rec.end());
   }
   render::VolumeRenderer renderer(d, {n_samples, -1, 1});
   Buffer<float> r(d, rays), t(d, n_rays * n_samples), delta(d, n_rays * n_samples);
@@ -103,7 +92,7 @@ TEST(Visibility, HomogeneousGridTransmitsExpMinusSigmaD) {
   for (std::size_t i = 0; i < s.visibility.size(); ++i) {
     const V3 x(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2]);
     const float* ray = &s.rays[(i / 16) * kRayFloats];
-    const double d = shadow_segment(x, V3(ray[8], ray[9], ray[10])).second;
+    const double d = shadow_segment(x, light_position(ray)).second;
     EXPECT_NEAR(s.visibility[i], std::exp(-0.8 * d), 2e-6) << i;
   }
 }
@@ -115,7 +104,7 @@ TEST(Visibility, DepthScaleGivesExpMinusKTau) {
     for (std::size_t i = 0; i < s.visibility.size(); ++i) {
       const V3 x(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2]);
       const float* ray = &s.rays[(i / 16) * kRayFloats];
-      const double d = shadow_segment(x, V3(ray[8], ray[9], ray[10])).second;
+      const double d = shadow_segment(x, light_position(ray)).second;
       EXPECT_NEAR(s.visibility[i], std::exp(-k * 0.8 * d), 2e-6) << i;
     }
   }
@@ -133,7 +122,7 @@ TEST(Visibility, RandomGridMatchesDoublePrecisionMarch) {
   for (std::size_t i = 0; i < s.visibility.size(); ++i) {
     const V3 x(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2]);
     const float* ray = &s.rays[(i / 16) * kRayFloats];
-    const V3 light(ray[8], ray[9], ray[10]);
+    const V3 light = light_position(ray);
     const auto [start, d] = shadow_segment(x, light);
     const V3 w = (light - x).normalized();
     double tau = 0;

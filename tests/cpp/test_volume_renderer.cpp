@@ -180,8 +180,8 @@ TEST(VolumeRenderer, AbsorbingSlabTransmitsExpMinusSigmaD) {
   // A ray along +x through the box (length 2) in a medium of sigma 0.7 and albedo 0: colour = T bg, T = e^-1.4.
   const Device dev = test::test_device();
   RayScene s = random_scene(1, 64, -1, 4, 1);
-  const float rec[kRayFloats] = {-3, 0.1f, -0.2f, 0, 1, 0, 0, 0, 0, 5, 0, 0, 100, 100, 100, 0, 0.5f, 1.0f, 2.0f, 0};
-  s.rays.assign(rec, rec + kRayFloats);
+  const auto rec = render::ray_record({-3, 0.1f, -0.2f}, {1, 0, 0}, {0, 5, 0}, {100, 100, 100}, {0.5f, 1.0f, 2.0f});
+  s.rays.assign(rec.begin(), rec.end());
   for (std::uint32_t i = 0; i < 64; ++i) {
     double* p = &s.props[i * s.cols()];
     p[0] = 0.7;
@@ -194,22 +194,49 @@ TEST(VolumeRenderer, AbsorbingSlabTransmitsExpMinusSigmaD) {
   EXPECT_NEAR(got.color[2], 2.0 * T, 1e-6);
 }
 
+TEST(VolumeRenderer, ScalesRgbBlocksByTheirRaysIntensity) {
+  const Device d = test::test_device();
+  const std::uint32_t spr = 16, n_rays = 3, n = spr * n_rays, per = 2;
+  VolumeRenderer renderer(d, {spr, -1, 4});
+  std::vector<float> rays(n_rays * kRayFloats, 0.0f);
+  for (std::uint32_t r = 0; r < n_rays; ++r)
+    for (int c = 0; c < 3; ++c) rays[r * kRayFloats + render::kRayLightIntensity + c] = float(10 * (r + 1) + c);
+  std::vector<float> h(n * 3 * per);
+  for (std::size_t i = 0; i < h.size(); ++i) h[i] = 0.5f + float(i % 7);
+  BatchMatrix src(d, n, 3 * per), dst(d, n, 1 + 3 * per);
+  src.upload_row_major(h);
+  Buffer<float> rb(d, rays);
+  renderer.scale_rgb_by_ray_intensity(rb, src, 0, dst, 1, per);
+  const auto out = dst.download_row_major();
+  for (std::uint32_t s = 0; s < n; ++s)
+    for (std::uint32_t c = 0; c < 3 * per; ++c)
+      EXPECT_EQ(out[s * (1 + 3 * per) + 1 + c],
+                rays[(s / spr) * kRayFloats + render::kRayLightIntensity + c / per] * h[s * 3 * per + c])
+          << s << " " << c;
+  // Samples per ray are the renderer's, a multiple of 16 (its tiles belong to one ray each).
+  EXPECT_THROW(VolumeRenderer(d, {24, -1, 4}), InvalidArgument);
+  Buffer<float> too_few(d, 2 * kRayFloats);
+  EXPECT_THROW(renderer.scale_rgb_by_ray_intensity(too_few, src, 0, dst, 1, per), InvalidArgument);
+  EXPECT_THROW(renderer.scale_rgb_by_ray_intensity(rb, src, 0, dst, 2, per), InvalidArgument);
+}
+
 TEST(VolumeRenderer, MissingRayShowsTheBackgroundAndJitterStaysInStrata) {
   const Device dev = test::test_device();
   VolumeRenderer renderer(dev, {16, -1, 4});
   // Ray 0 misses the box; ray 1 crosses it along the diagonal.
-  std::vector<float> rays = {5,     5,    5,     0, 0,  0,  1,  0, 0,           0,           9,           0, 1, 1, 1, 0,
-                             0.25f, 0.5f, 0.75f, 0, -3, -3, -3, 0, 0.57735027f, 0.57735027f, 0.57735027f, 0, 0, 0, 9, 0,
-                             1,     1,    1,     0, 0,  0,  0,  0};
+  const auto miss = render::ray_record({5, 5, 5}, {0, 0, 1}, {0, 0, 9}, {1, 1, 1}, {0.25f, 0.5f, 0.75f});
+  const auto cross = render::ray_record({-3, -3, -3}, {0.57735027f, 0.57735027f, 0.57735027f}, {0, 0, 9}, {1, 1, 1});
+  std::vector<float> rays(miss.begin(), miss.end());
+  rays.insert(rays.end(), cross.begin(), cross.end());
   Buffer<float> r(dev, rays), t(dev, 32), delta(dev, 32);
   BatchMatrix pos(dev, 32, 3);
   renderer.sample(r, 2, true, 99, t, delta, pos);
   const auto rec = r.read(), tv = t.read(), dv = delta.read();
-  EXPECT_EQ(rec[3], 0.f);
-  EXPECT_EQ(rec[7], 0.f);
+  EXPECT_EQ(rec[render::kRayTNear], 0.f);
+  EXPECT_EQ(rec[render::kRayTFar], 0.f);
   const double tn = 2 * std::sqrt(3.0), tf = 4 * std::sqrt(3.0), step = (tf - tn) / 16;
-  EXPECT_NEAR(rec[20 + 3], tn, 1e-5);
-  EXPECT_NEAR(rec[20 + 7], tf, 1e-5);
+  EXPECT_NEAR(rec[kRayFloats + render::kRayTNear], tn, 1e-5);
+  EXPECT_NEAR(rec[kRayFloats + render::kRayTFar], tf, 1e-5);
   double total = 0;
   for (int i = 0; i < 16; ++i) {
     EXPECT_GE(tv[16 + i], tn + i * step - 1e-5);
@@ -358,8 +385,8 @@ TEST(VolumeRendererEnvironment, UniformEnvironmentGivesItsRadianceForAnyG) {
   const Vec3 E(0.7, 1.3, 2.1);
   render::EnvironmentSamples env(dev, EnvironmentLight::uniform({0.7f, 1.3f, 2.1f}, false), n_env);
   VolumeRenderer renderer(dev, {n, -1, 1, false, n_env});
-  const float rec[kRayFloats] = {-3, 0.2f, 0.1f, 0, 1, 0, 0, 0, 0, 5, 0, 0, 100, 100, 100, 0, 0, 0, 0, 0};
-  Buffer<float> rays(dev, std::vector<float>(rec, rec + kRayFloats)), t(dev, n), delta(dev, n), color(dev, 3),
+  const auto rec = render::ray_record({-3, 0.2f, 0.1f}, {1, 0, 0}, {0, 5, 0}, {100, 100, 100});
+  Buffer<float> rays(dev, std::vector<float>(rec.begin(), rec.end())), t(dev, n), delta(dev, n), color(dev, 3),
       trans(dev, 1);
   BatchMatrix pos(dev, n, 3), props(dev, n, renderer.prop_cols()), rad(dev, n, 3), none(dev, 1, 3), basis(dev, 1, 0);
   std::vector<float> pv(n * renderer.prop_cols(), 1.0f);  // sigma, albedo, V_env = 1
@@ -535,14 +562,17 @@ TEST(VolumeRendererBrdf, RadianceMatchesThePathTracersBrdf) {
   for (std::uint32_t i = 0; i < n; ++i) {
     const float* ray = &s.rays[(i / s.n_samples) * kRayFloats];
     const double* p = &s.props[i * s.cols()];
-    const Vec3 to_light = Vec3(ray[8], ray[9], ray[10]) - Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+    const Vec3 to_light =
+        reference::field3(ray, render::kRayLightPosition) - Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
     const Vec3 nrm = Vec3(p[s.normal_col()], p[s.normal_col() + 1], p[s.normal_col() + 2]).normalized();
     const Vec3 wl = to_light.normalized();
     records.push_back({{float(nrm.x()), float(nrm.y()), float(nrm.z()), float(p[render::kRoughness])}});
-    records.push_back({{-ray[4], -ray[5], -ray[6], 0}});
+    records.push_back(
+        {{-ray[render::kRayDirection], -ray[render::kRayDirection + 1], -ray[render::kRayDirection + 2], 0}});
     records.push_back({{float(wl.x()), float(wl.y()), float(wl.z()), 0}});
     records.push_back({{float(p[1]), float(p[2]), float(p[3]), 0}});
-    light.push_back(p[render::kVisibility] / to_light.squaredNorm() * Vec3(ray[12], ray[13], ray[14]));
+    light.push_back(p[render::kVisibility] / to_light.squaredNorm() *
+                    reference::field3(ray, render::kRayLightIntensity));
   }
   Buffer<cl_float4> in(dev, records), out(dev, n);
   dev.kernel("pathtrace_probe.cl", "probe_brdf_cos").args(cl_uint(n), in, out).launch(n, 16);

@@ -25,6 +25,9 @@ using Vec3 = Eigen::Vector3d;
 
 constexpr double kPi = 3.14159265358979323846;
 
+// The 3-vector field `f` of a ray record (render::RayField, kernels/layout.clh).
+inline Vec3 field3(const float* ray, render::RayField f) { return Vec3(ray[f], ray[f + 1], ray[f + 2]); }
+
 inline double hg(double g, double mu) { return (1 - g * g) / (4 * kPi * std::pow(1 + g * g + 2 * g * mu, 1.5)); }
 
 struct RayScene {
@@ -58,27 +61,12 @@ inline RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int 
     const Vec3 target(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
     const Vec3 d = (target - o).normalized();
     const Vec3 lp = (3 + 2 * u(rng)) * unit();
-    const float rec[kRayFloats] = {float(o.x()),
-                                   float(o.y()),
-                                   float(o.z()),
-                                   0,
-                                   float(d.x()),
-                                   float(d.y()),
-                                   float(d.z()),
-                                   0,
-                                   float(lp.x()),
-                                   float(lp.y()),
-                                   float(lp.z()),
-                                   0,
-                                   float(300 + 600 * u(rng)),
-                                   float(300 + 600 * u(rng)),
-                                   float(300 + 600 * u(rng)),
-                                   0,
-                                   float(u(rng)),
-                                   float(u(rng)),
-                                   float(u(rng)),
-                                   0};
-    s.rays.insert(s.rays.end(), rec, rec + kRayFloats);
+    const float i0 = float(300 + 600 * u(rng)), i1 = float(300 + 600 * u(rng)), i2 = float(300 + 600 * u(rng));
+    const float b0 = float(u(rng)), b1 = float(u(rng)), b2 = float(u(rng));
+    const auto rec =
+        render::ray_record({float(o.x()), float(o.y()), float(o.z())}, {float(d.x()), float(d.y()), float(d.z())},
+                           {float(lp.x()), float(lp.y()), float(lp.z())}, {i0, i1, i2}, {b0, b1, b2});
+    s.rays.insert(s.rays.end(), rec.begin(), rec.end());
   }
   for (std::uint32_t i = 0; i < n_rays * n_samples; ++i) {
     s.props.push_back(3 * u(rng));                                                       // sigma
@@ -89,7 +77,7 @@ inline RayScene random_scene(std::uint32_t n_rays, std::uint32_t n_samples, int 
     for (std::uint32_t j = 0; j < n_env; ++j) s.props.push_back(u(rng));                 // environment visibility
     if (brdf) {
       const float* ray = &s.rays[(i / n_samples) * kRayFloats];
-      const Vec3 wo = -Vec3(ray[4], ray[5], ray[6]);
+      const Vec3 wo = -field3(ray, render::kRayDirection);
       const Vec3 n = (unit() + 0.7 * wo).normalized() * (0.3 + 1.7 * u(rng));
       s.props.insert(s.props.end(), {n.x(), n.y(), n.z()});
     }
@@ -137,8 +125,9 @@ inline std::vector<double> reference_color(const RayScene& s, const std::vector<
   const std::uint32_t cols = s.cols();
   for (std::uint32_t r = 0; r < s.n_rays; ++r) {
     const float* ray = &s.rays[r * kRayFloats];
-    const Vec3 o(ray[0], ray[1], ray[2]), d(ray[4], ray[5], ray[6]), lp(ray[8], ray[9], ray[10]);
-    const Vec3 I(ray[12], ray[13], ray[14]), bg(ray[16], ray[17], ray[18]);
+    const Vec3 o = field3(ray, render::kRayOrigin), d = field3(ray, render::kRayDirection),
+               lp = field3(ray, render::kRayLightPosition);
+    const Vec3 I = field3(ray, render::kRayLightIntensity), bg = field3(ray, render::kRayBackground);
     double tn = 0, tf = 1e30;
     for (int a = 0; a < 3; ++a) {
       const double t0 = (-1 - o[a]) / d[a], t1 = (1 - o[a]) / d[a];

@@ -575,8 +575,9 @@ void MediumModel::forward_indirect(MediumPass& pass, Buffer<float>& rays, std::u
     m_indirect->forward(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
   else
     m_indirect->inference(m_device, theta_sh, pass.light_in, pass.indirect_raw, *pass.ws_indirect);
-  nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,
-                                 1.0f / m_settings.intensity_reference);
+  renderer_for(spr, n_env)
+      .scale_rgb_by_ray_intensity(rays, pass.indirect_raw, 0, pass.props, render::kSH, n_sh,
+                                  1.0f / m_settings.intensity_reference);
   if (m_settings.indirect_depth_attenuation)
     nn::multiply_columns(m_device, pass.depth_in, pass.props, render::kSH, 3 * n_sh);
   if (m_environment && n_env > 0) {  // c += c_env(f(x)): the environment's indirect light, not scaled by I
@@ -614,8 +615,9 @@ void MediumModel::backward_branch(MediumPass& pass, const Branch& branch, const 
   if (m_settings.renderer.scattering == "brdf")
     nn::copy_columns(m_device, pass.d_props, renderer_for(spr, n_env).normal_col(), pass.d_props_raw, 5, 3);
   if (n_sh > 0) {
-    nn::scale_rgb_by_ray_intensity(m_device, rays, spr, pass.d_props, render::kSH, pass.d_indirect_raw, 0, n_sh,
-                                   1.0f / m_settings.intensity_reference);
+    renderer_for(spr, n_env)
+        .scale_rgb_by_ray_intensity(rays, pass.d_props, render::kSH, pass.d_indirect_raw, 0, n_sh,
+                                    1.0f / m_settings.intensity_reference);
     if (m_settings.indirect_depth_attenuation)
       nn::multiply_columns(m_device, pass.depth_in, pass.d_indirect_raw, 0, 3 * n_sh);
     m_indirect->backward(m_device, {&m_params, m_property->n_params()}, pass.light_in, pass.indirect_raw,

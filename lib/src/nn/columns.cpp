@@ -27,21 +27,6 @@ void copy_columns(const Device& device, const BatchMatrix& src, std::uint32_t sr
       .launch(n_tiles, 16);
 }
 
-void scale_rgb_by_ray_intensity(const Device& device, const Buffer<float>& rays, std::uint32_t samples_per_ray,
-                                const BatchMatrix& src, std::uint32_t src_col, BatchMatrix& dst, std::uint32_t dst_col,
-                                std::uint32_t per_channel, float scale) {
-  check(src, src_col, dst, dst_col, 3 * per_channel, "scale_rgb_by_ray_intensity");
-  if (samples_per_ray == 0 || samples_per_ray % kBatchTile != 0)
-    throw InvalidArgument("scale_rgb_by_ray_intensity: samples per ray must be a positive multiple of 16");
-  const std::uint32_t n_tiles = (src.batch() + kBatchTile - 1) / kBatchTile;
-  if (rays.size() < std::size_t((src.batch() + samples_per_ray - 1) / samples_per_ray) * 20)
-    throw InvalidArgument("scale_rgb_by_ray_intensity: fewer ray records than the samples need");
-  device.kernel("columns.cl", "scale_rgb_by_ray_intensity")
-      .args(n_tiles, per_channel, samples_per_ray, scale, rays, src.data(), src.cols(), src_col, dst.data(), dst.cols(),
-            dst_col)
-      .launch(n_tiles, 16);
-}
-
 void multiply_columns(const Device& device, const BatchMatrix& factor, BatchMatrix& m, std::uint32_t col,
                       std::uint32_t count) {
   if (factor.cols() != 1) throw InvalidArgument("multiply_columns: the factor must have one column");

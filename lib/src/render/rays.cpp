@@ -7,21 +7,25 @@
 
 namespace relit::render {
 
-std::array<float, 16> camera_record(const Camera& camera) {
+std::array<float, kCameraFloats> camera_record(const Camera& camera) {
   camera.validate();
-  std::array<float, 16> r{};
+  std::array<float, kCameraFloats> r{};
   for (int row = 0; row < 3; ++row)
-    for (int col = 0; col < 4; ++col) r[row * 4 + col] = camera.transform[row][col];
-  r[12] = r[13] = camera.focal();
-  r[14] = 0.5f * camera.width;
-  r[15] = 0.5f * camera.height;
+    for (int col = 0; col < 4; ++col) r[kCameraToWorld + row * 4 + col] = camera.transform[row][col];
+  r[kCameraFocal] = r[kCameraFocal + 1] = camera.focal();
+  r[kCameraCentre] = 0.5f * camera.width;
+  r[kCameraCentre + 1] = 0.5f * camera.height;
   return r;
 }
 
-std::array<float, 8> light_record(const PointLight& light) {
+std::array<float, kLightFloats> light_record(const PointLight& light) {
   light.validate();
-  return {light.position[0],  light.position[1],  light.position[2],  0.0f,
-          light.intensity[0], light.intensity[1], light.intensity[2], 0.0f};
+  std::array<float, kLightFloats> r{};
+  for (int i = 0; i < 3; ++i) {
+    r[kLightPosition + i] = light.position[i];
+    r[kLightIntensity + i] = light.intensity[i];
+  }
+  return r;
 }
 
 namespace {

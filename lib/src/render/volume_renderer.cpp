@@ -54,6 +54,25 @@ void VolumeRenderer::view_basis(const Buffer<float>& rays, std::uint32_t n_rays,
   m_sh->forward(m_device, {nullptr, 0}, m_view_dirs, out, 0, nullptr);
 }
 
+void VolumeRenderer::scale_rgb_by_ray_intensity(const Buffer<float>& rays, const nn::BatchMatrix& src,
+                                                std::uint32_t src_col, nn::BatchMatrix& dst, std::uint32_t dst_col,
+                                                std::uint32_t per_channel, float scale) const {
+  const std::uint32_t count = 3 * per_channel;
+  if (src.batch() != dst.batch() || src_col + count > src.cols() || dst_col + count > dst.cols())
+    throw InvalidArgument("VolumeRenderer::scale_rgb_by_ray_intensity: columns [" + std::to_string(src_col) + ", " +
+                          std::to_string(src_col + count) + ") of a " + std::to_string(src.batch()) + "x" +
+                          std::to_string(src.cols()) + " matrix do not fit columns [" + std::to_string(dst_col) + ", " +
+                          std::to_string(dst_col + count) + ") of a " + std::to_string(dst.batch()) + "x" +
+                          std::to_string(dst.cols()) + " one");
+  const std::uint32_t spr = m_settings.n_samples;
+  const std::uint32_t n_tiles = (src.batch() + nn::kBatchTile - 1) / nn::kBatchTile;
+  if (rays.size() < std::size_t((src.batch() + spr - 1) / spr) * kRayFloats)
+    throw InvalidArgument("VolumeRenderer::scale_rgb_by_ray_intensity: fewer ray records than the samples need");
+  m_device.kernel("render.cl", "scale_rgb_by_ray_intensity", m_defines)
+      .args(n_tiles, per_channel, scale, rays, src.data(), src.cols(), src_col, dst.data(), dst.cols(), dst_col)
+      .launch(n_tiles, 16);
+}
+
 void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
                            const nn::BatchMatrix& sh_basis, const EnvironmentSamples* env, const char* what) const {
   const std::uint32_t n_env = m_settings.n_env_dirs;

@@ -1,6 +1,6 @@
 // BatchMatrix: a batch of feature vectors on the device, in relit's tiled layout.
 //
-//   element (sample s, feature f) lives at  ((s / 16) * cols + f) * 16 + (s % 16)
+//   element (sample s, feature f) lives at  ((s / 16) * cols + f) * 16 + (s % 16)     (kernels/layout.clh)
 //
 //   tile 0: [f0: s0..s15][f1: s0..s15] ... [f(cols-1): s0..s15]   tile 1: [f0: s16..s31] ...
 //
@@ -15,13 +15,14 @@
 #pragma once
 
 #include <relit/cl/buffer.hpp>
+#include <relit/layout.clh>
 
 #include <cstdint>
 #include <vector>
 
 namespace relit::nn {
 
-constexpr std::uint32_t kBatchTile = 16;
+constexpr std::uint32_t kBatchTile = RELIT_TILE;  // kernels/layout.clh
 constexpr std::uint32_t kBatchGranularity = 128;
 
 inline std::uint32_t padded_batch(std::uint32_t batch) {

@@ -11,13 +11,6 @@ namespace relit::nn {
 void copy_columns(const Device& device, const BatchMatrix& src, std::uint32_t src_col, BatchMatrix& dst,
                   std::uint32_t dst_col, std::uint32_t count, float scale = 1.0f, bool accumulate = false);
 
-/// For 3 channel-major blocks of `per_channel` columns: dst = I_ch(ray) * src, where sample s belongs to ray
-/// s / samples_per_ray (a multiple of 16) and I is the ray record's RGB intensity (render::kRayFloats layout).
-/// Every value is also multiplied by `scale`. Its own adjoint: the gradient goes back through the same call.
-void scale_rgb_by_ray_intensity(const Device& device, const Buffer<float>& rays, std::uint32_t samples_per_ray,
-                                const BatchMatrix& src, std::uint32_t src_col, BatchMatrix& dst, std::uint32_t dst_col,
-                                std::uint32_t per_channel, float scale = 1.0f);
-
 /// m[:, col + j] *= factor[:, 0] for j < count, in place: a per-sample scale (its own adjoint). `factor` has one
 /// column and m's batch size.
 void multiply_columns(const Device& device, const BatchMatrix& factor, BatchMatrix& m, std::uint32_t col,

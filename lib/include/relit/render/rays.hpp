@@ -6,6 +6,7 @@
 #pragma once
 
 #include <relit/cl/buffer.hpp>
+#include <relit/layout.clh>
 #include <relit/scene/camera.hpp>
 #include <relit/scene/light.hpp>
 
@@ -15,10 +16,10 @@
 
 namespace relit::render {
 
-/// The 16-float device record of a camera: its 3x4 camera-to-world rows, then fx, fy, cx, cy in pixels.
-std::array<float, 16> camera_record(const Camera& camera);
-/// The 8-float device record of a point light: position, 0, RGB intensity, 0.
-std::array<float, 8> light_record(const PointLight& light);
+/// The device record of a camera (kernels/layout.clh): its 3x4 camera-to-world rows, fx, fy, cx, cy in pixels.
+std::array<float, kCameraFloats> camera_record(const Camera& camera);
+/// The device record of a point light (kernels/layout.clh): position and RGB intensity.
+std::array<float, kLightFloats> light_record(const PointLight& light);
 
 /// Images, cameras and lights of a training set, resident on the device.
 class RaySource {

@@ -11,11 +11,13 @@
 //   backward(): dL/dcolour → dL/dproperties (sigma, albedo, g or roughness, SH coefficients, the raw normal;
 //               zero for every visibility column, whose network the render loss must not reach)
 //
-// Ray records are kRayFloats floats: origin, t_near, direction (unit), t_far, light position, 0, light RGB
-// intensity [W/sr], 0, background radiance, 0. Sample s = ray * n_samples + i.
+// Ray records are kRayFloats floats: origin, t_near, direction (unit), t_far, light position, light RGB
+// intensity [W/sr], background radiance, at the offsets RayField names (both declared in kernels/layout.clh,
+// which the kernels share). Sample s = ray * n_samples + i.
 #pragma once
 
 #include <relit/cl/buffer.hpp>
+#include <relit/layout.clh>
 #include <relit/nn/batch.hpp>
 #include <relit/nn/module.hpp>
 
@@ -25,8 +27,6 @@
 #include <cstdint>
 
 namespace relit::render {
-
-constexpr std::uint32_t kRayFloats = 20;
 
 class EnvironmentSamples;
 
@@ -96,6 +96,14 @@ class VolumeRenderer {
 
   /// Y_j(-w_o) for every ray (n_rays x n_sh), the basis the closed-form indirect option needs.
   void view_basis(const Buffer<float>& rays, std::uint32_t n_rays, nn::BatchMatrix& out) const;
+
+  /// For 3 channel-major blocks of `per_channel` columns: dst = I_ch(ray) * src, where sample s belongs to ray
+  /// s / n_samples and I is the ray record's light intensity. Every value is also multiplied by `scale`. Its
+  /// own adjoint: the gradient goes back through the same call. Indirect light is linear in the intensity, so a
+  /// network can predict it per unit intensity.
+  void scale_rgb_by_ray_intensity(const Buffer<float>& rays, const nn::BatchMatrix& src, std::uint32_t src_col,
+                                  nn::BatchMatrix& dst, std::uint32_t dst_col, std::uint32_t per_channel,
+                                  float scale = 1.0f) const;
 
   /// Uses `radiance` and `color` from the forward call and the same `env`. Overwrites every column of
   /// `d_props`; the visibility columns (point light and environment) get zero.
