@@ -1,5 +1,5 @@
-// enc_sh.cl: real spherical harmonics of a unit direction (seed eq. 2, Condon-Shortley phase inside P_l^m),
-// degree DEGREE (bands l = 0 .. DEGREE-1, DEGREE^2 outputs; output column l*l + l + m), and the gradient with
+// enc_sh.cl: real spherical harmonics of a unit direction (Zheng et al. 2021, eq. 2, Condon-Shortley phase inside
+// P_l^m), degree DEGREE (bands l = 0 .. DEGREE-1, DEGREE^2 outputs; output column l*l + l + m), and the gradient with
 // respect to the direction.
 //
 // No trigonometry: with (x, y, z) = (sin t cos p, sin t sin p, cos t),

@@ -1,4 +1,4 @@
-// environment.cl: the environment light of the neural renderer (DESIGN §4.2) — the N_e importance-sampled
+// environment.cl: the environment light of the neural renderer (docs/design.md §4.2) — the N_e importance-sampled
 // directions of an iteration with their Monte Carlo weights, shared by the whole batch, and the background
 // radiance L_bg(d) of camera rays. The map's layout and sampler are in environment.clh.
 //

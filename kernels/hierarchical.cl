@@ -1,5 +1,5 @@
-// hierarchical.cl: the hierarchical (importance) sampling of Bi et al.'s Neural Reflectance Field (DESIGN §4.5),
-// as NeRF: N_FINE more samples per ray drawn from the coarse pass's compositing weights, merged with the coarse
+// hierarchical.cl: the hierarchical (importance) sampling of Bi et al.'s Neural Reflectance Field (docs/design.md
+// §4.5), as NeRF: N_FINE more samples per ray drawn from the coarse pass's compositing weights, merged with the coarse
 // samples into N_COARSE + N_FINE sorted samples for the fine network.
 //
 // The coarse sample i stands for the stratum [t_near + i h, t_near + (i + 1) h), h = (t_far - t_near) / N_COARSE;

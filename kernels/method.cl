@@ -1,4 +1,4 @@
-// method.cl: the glue kernels of the "Ours" model (DESIGN §4.3) — network inputs that depend on the light,
+// method.cl: the glue kernels of the "Ours" model (docs/design.md §4.3) — network inputs that depend on the light,
 // moves between the renderer's per-ray rows and the nn family's tiled matrices, density-grid refresh, and the
 // NaN/Inf guard of a training step.
 //

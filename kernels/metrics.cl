@@ -1,4 +1,4 @@
-// metrics.cl: image metrics on the clamped, sRGB-encoded image (DESIGN §6): PSNR and SSIM with an 11x11
+// metrics.cl: image metrics on the clamped, sRGB-encoded image (docs/design.md §6): PSNR and SSIM with an 11x11
 // Gaussian window, sigma 1.5 (Wang et al. 2004; the same as scikit-image's structural_similarity with
 // gaussian_weights=True, use_sample_covariance=False, data_range=1).
 //

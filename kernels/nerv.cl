@@ -1,4 +1,5 @@
-// nerv.cl: NeRV's one-bounce indirect light adapted to participating media (seed appendix D; DESIGN §4.5).
+// nerv.cl: NeRV's one-bounce indirect light adapted to participating media (Zheng et al. 2021, appendix D;
+// docs/design.md §4.5).
 //
 // Per camera ray r, after the direct-light pass (render.cl) has composited its samples:
 //   W_r   = sum_i w_i a_i                        the albedo the ray sees, w_i = T_i (1 - exp(-sigma_i delta_i))

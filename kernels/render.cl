@@ -1,4 +1,4 @@
-// render.cl: the neural volume renderer of DESIGN §4.2 — stratified ray sampling, per-sample in-scattered
+// render.cl: the neural volume renderer of docs/design.md §4.2 — stratified ray sampling, per-sample in-scattered
 // radiance (point light + environment + SH indirect light), alpha compositing, and the backward passes of both.
 //
 // Samples are numbered s = ray * N_SAMPLES + i, so the 16 samples of a BatchMatrix tile all belong to one
@@ -23,7 +23,7 @@
 // `sh_basis` holds Y_j(-w_o) per ray (an n_rays x N_SH tiled matrix) and `dirs` is unused. The N_ENV
 // environment directions and weights (N_ENV x 3 tiled each) are drawn once per iteration for the whole batch
 // (environment.cl); with N_ENV = 0 the environment is compiled out and its arguments are unused.
-// Directions point away from the sample (seed appendix A); w_o = -d. HG with the seed's +2g convention.
+// Directions point away from the sample (Zheng et al. 2021, appendix A); w_o = -d. HG with the paper's +2g convention.
 #include "brdf.clh"
 #include "common.clh"
 #include "geometry.clh"
@@ -325,7 +325,7 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   tile_store(d_props, tile, PROP_COLS, 5, (float16)(0.0f));
 }
 
-// ---- per-sample radiance, scattering "brdf" (solids, DESIGN §4.4) -------------------------------------------
+// ---- per-sample radiance, scattering "brdf" (solids, docs/design.md §4.4) -------------------------------------------
 //
 // The light a surface sample sends toward the camera: each light term adds f(w_o, w_i) max(0, n.w_i) L(w_i)
 // with f = a * diffuse + spec the BRDF of brdf.clh (the path tracer's), n = n_raw / |n_raw|:
@@ -547,8 +547,8 @@ __kernel void view_directions(const uint n_rays, __global const float* restrict 
 
 // Channel-major RGB blocks of `per_channel` columns, scaled per sample by its ray's light intensity:
 // dst[ch * per_channel + j] = I_ch(ray(s)) * src[ch * per_channel + j]. Indirect light is linear in the light's
-// intensity, so the SH head predicts light per unit intensity (DESIGN §4.3). `scale` multiplies every value (the
-// model's intensity normalisation). One work-item per tile: its 16 samples belong to one ray.
+// intensity, so the SH head predicts light per unit intensity (docs/design.md §4.3). `scale` multiplies every value
+// (the model's intensity normalisation). One work-item per tile: its 16 samples belong to one ray.
 __kernel void scale_rgb_by_ray_intensity(const uint n_tiles, const uint per_channel, const float scale,
                                          __global const float* restrict rays, __global const float* restrict src,
                                          const uint src_cols, const uint src_col, __global float* restrict dst,

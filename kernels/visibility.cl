@@ -1,4 +1,4 @@
-// visibility.cl: targets of the visibility network (DESIGN §4.3) — the transmittance of the learned density
+// visibility.cl: targets of the visibility network (docs/design.md §4.3) — the transmittance of the learned density
 // from each sample toward its ray's point light, or toward each of a set of directions shared by all samples
 // (the environment's), by a midpoint-rule march through a cached density grid (a dense grid of sigma over
 // [-1, 1]^3, refreshed from the property network every few iterations).

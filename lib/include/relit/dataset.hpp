@@ -1,5 +1,5 @@
-// Dataset generation (DESIGN §5): multi-view renders of a scene under the seed's lighting protocols, written
-// in the NeRF/NeRV-compatible format of docs/dataset-format.md:
+// Dataset generation (docs/design.md §5): multi-view renders of a scene under the lighting protocols of Zheng et al.
+// 2021, written in the NeRF/NeRV-compatible format of docs/dataset-format.md:
 //
 //   out/transforms_{train,val,test}.json   camera_angle_x, w, h, environment, frames [{file_path,
 //                                          preview_path, transform_matrix, light {type, position, intensity}}]

@@ -1,4 +1,4 @@
-// Image metrics (DESIGN §6): PSNR and SSIM, computed in OpenCL on the clamped, sRGB-encoded images.
+// Image metrics (docs/design.md §6): PSNR and SSIM, computed in OpenCL on the clamped, sRGB-encoded images.
 //
 // Both images are linear float RGB(A), interleaved row-major (height x width x channels). They are clamped
 // to [0, 1] and sRGB-encoded first, so the numbers describe what a person sees on a display, and match

@@ -1,4 +1,4 @@
-// The reference volumetric path tracer (DESIGN §5): unbiased ground truth for media and solids.
+// The reference volumetric path tracer (docs/design.md §5): unbiased ground truth for media and solids.
 //
 //   relit::PathTracer pt(device, scene);                 // uploads grids, majorants, environment tables once
 //   relit::RenderSettings rs; rs.spp = 64; rs.seed = 1;

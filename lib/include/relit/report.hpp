@@ -1,4 +1,4 @@
-// Evaluation reports (DESIGN §6): per-view PSNR/SSIM of rendered test views against their references, their
+// Evaluation reports (docs/design.md §6): per-view PSNR/SSIM of rendered test views against their references, their
 // means per split and overall, written as files a person reads and a script parses.
 //
 //   dir/metrics.json               every view's psnr/ssim/mse, per-split means, the overall mean, `meta`

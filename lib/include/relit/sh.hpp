@@ -1,6 +1,6 @@
 // Real spherical harmonics on the host, in double: the reference the renderer and the tests use.
 //
-// Y_l^m exactly as the seed's eq. 2 (Sloan's real SH; P_l^m includes the Condon-Shortley phase, so
+// Y_l^m exactly as eq. 2 of Zheng et al. 2021 (Sloan's real SH; P_l^m includes the Condon-Shortley phase, so
 // Y_1^-1 = -c y, Y_1^0 = c z, Y_1^1 = -c x with c = sqrt(3 / 4 pi), as tiny-cuda-nn), in the fixed world
 // frame: z up, phi measured from +x. Coefficient index l*l + l + m, bands l = 0..l_max.
 #pragma once

@@ -1,4 +1,4 @@
-// Bi et al.'s Neural Reflectance Field (seed appendix D): coarse and fine networks joined by hierarchical
+// Bi et al.'s Neural Reflectance Field (Zheng et al. 2021, appendix D): coarse and fine networks joined by hierarchical
 // sampling, on the renderer and visibility machinery every method shares (MediumModel).
 #include <relit/cl/program.hpp>
 #include <relit/method/bi.hpp>
@@ -25,7 +25,9 @@ NeuralReflectanceField::NeuralReflectanceField(const Device& device, const Json&
 
 void NeuralReflectanceField::describe(config::Docs& docs) { NeuralReflectanceField().describe_keys(docs); }
 
-RELIT_REGISTER_METHODS(bi) { registry.add<NeuralReflectanceField>("bi", 30); }
+RELIT_REGISTER_METHODS(bi) {
+  registry.add<NeuralReflectanceField>("bi", 30, "Bi et al.'s Neural Reflectance Field: docs/design.md §4.5");
+}
 
 std::uint32_t NeuralReflectanceField::queries_per_ray() const {
   const std::uint32_t per_sample = 1 + (has_environment() ? env_dirs() : 0);

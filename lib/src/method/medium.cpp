@@ -129,7 +129,7 @@ void MediumModel::configure(const Json& config, const std::string& pointer, conf
 // directions.
 void MediumModel::configure_renderer(config::Reader& r, config::Docs* docs) {
   auto& s = m_settings.renderer;
-  config::Reader rr(r.sub("renderer", Json::object(), "object", "the volume renderer (DESIGN §4.2)"),
+  config::Reader rr(r.sub("renderer", Json::object(), "object", "the volume renderer (docs/design.md §4.2)"),
                     r.pointer("renderer"), "renderer");
   s.n_samples = rr.uint("n_samples", 64, 16, 1024,
                         m_parts.hierarchical ? "stratified samples per ray of the coarse network (a multiple of 16)"

@@ -1,5 +1,5 @@
-// NeRV (seed appendix D): the shared property network and renderer for the direct light, a two-stage visibility
-// network that also predicts the expected termination depth, and one indirect bounce per camera ray
+// NeRV (Zheng et al. 2021, appendix D): the shared property network and renderer for the direct light, a two-stage
+// visibility network that also predicts the expected termination depth, and one indirect bounce per camera ray
 // (kernels/nerv.cl).
 #include <relit/cl/program.hpp>
 #include <relit/method/nerv.hpp>
@@ -135,14 +135,14 @@ NeRV::NeRV(const Device& device, const Json& config, const std::string& pointer)
 
 void NeRV::describe(config::Docs& docs) { NeRV().describe_keys(docs); }
 
-RELIT_REGISTER_METHODS(nerv) { registry.add<NeRV>("nerv", 40); }
+RELIT_REGISTER_METHODS(nerv) { registry.add<NeRV>("nerv", 40, "NeRV: docs/design.md §4.5"); }
 
 void NeRV::configure_method(config::Reader& r, config::Docs* docs) {
   config::Reader b(r.sub("bounce", Json::object(), "object", "the one indirect bounce per camera ray"),
                    r.pointer("bounce"), "bounce");
   m_nerv.n_dirs = b.uint("n_dirs", 128, 1, 4096,
                          "K of a training step: uniform bounce directions from the expected termination point");
-  m_nerv.n_dirs_render = b.uint("n_dirs_render", 128, 1, 4096, "K when rendering images (the seed's 128)");
+  m_nerv.n_dirs_render = b.uint("n_dirs_render", 128, 1, 4096, "K when rendering images (128 in Zheng et al. 2021)");
   m_nerv.n_dirs_env = b.uint("n_dirs_env", 32, 1, 4096, "K when the scene is also lit by an environment map");
   m_nerv.visibility_fraction = b.number("visibility_fraction", 0.25f, 1e-3f, 1.0f,
                                         "share of each batch's rays whose bounce queries train the visibility net");

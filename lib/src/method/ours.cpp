@@ -19,8 +19,8 @@ OursBrdf::OursBrdf(const Device& device, const Json& config, const std::string& 
 void OursBrdf::describe(config::Docs& docs) { OursBrdf().describe_keys(docs); }
 
 RELIT_REGISTER_METHODS(ours) {
-  registry.add<Ours>("ours", 10);
-  registry.add<OursBrdf>("ours_brdf", 20);
+  registry.add<Ours>("ours", 10, "Ours, the paper's method: docs/design.md §4.3");
+  registry.add<OursBrdf>("ours_brdf", 20, "Ours + BRDF for solids: docs/design.md §4.4");
 }
 
 }  // namespace relit::method

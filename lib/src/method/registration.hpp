@@ -1,8 +1,8 @@
 // How a method's source registers it (private to the library):
 //
 //   RELIT_REGISTER_METHODS(ours) {        // in lib/src/method/ours.cpp, at namespace relit::method
-//     registry.add<Ours>("ours", 10);
-//     registry.add<OursBrdf>("ours_brdf", 20);
+//     registry.add<Ours>("ours", 10, "Ours, the paper's method: docs/design.md §4.3");
+//     registry.add<OursBrdf>("ours_brdf", 20, "Ours + BRDF for solids: docs/design.md §4.4");
 //   }
 //
 // The build finds every such line in lib/src/method/*.cpp (lib/CMakeLists.txt) and generates

@@ -57,9 +57,9 @@ void tiled_to_rows(const Device& device, const nn::BatchMatrix& m, Buffer<float>
 
 // The top-level keys of a run config (also read by the Trainer's constructor).
 Json read_run_keys(config::Reader& r) {
-  r.choice("method", "ours", method_names(),
-           "the method: ours (DESIGN §4.3), ours_brdf (Ours + BRDF for solids, §4.4), bi (Bi et al.'s Neural "
-           "Reflectance Field) or nerv (NeRV), §4.5");
+  std::string listing;
+  for (const auto& m : methods().entries()) listing += (listing.empty() ? "" : "; ") + m.name + " (" + m.summary + ")";
+  r.choice("method", "ours", method_names(), "the method: " + listing);
   return r.sub("model", Json::object(), "object", "the model (the /model objects below)");
 }
 

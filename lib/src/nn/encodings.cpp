@@ -100,7 +100,8 @@ void register_encodings(EncodingRegistry& registry) {
   registry.add("Identity", "passes the inputs through, optionally scaled and offset", make_identity);
   registry.add("Frequency", "NeRF positional encoding: sin and cos of 2^k pi x, k = 0..n_frequencies-1",
                make_frequency);
-  registry.add("SphericalHarmonics", "real spherical harmonics of a unit direction (seed eq. 2)", make_sh);
+  registry.add("SphericalHarmonics", "real spherical harmonics of a unit direction (Zheng et al. 2021, eq. 2)",
+               make_sh);
   registry.add("HashGrid", "multiresolution hash encoding (instant-ngp) of positions in [0, 1]^d", make_hash_grid);
   registry.add("Composite", "nested encodings over consecutive input dims, outputs concatenated", make_composite);
 }

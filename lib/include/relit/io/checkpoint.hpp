@@ -1,4 +1,4 @@
-// Checkpoints (DESIGN §7): one self-describing file per checkpoint, no pickle.
+// Checkpoints (docs/design.md §7): one self-describing file per checkpoint, no pickle.
 //
 //   offset 0   8 bytes  magic "RELITCKP"
 //              4 bytes  format version (little-endian uint32, currently 1)

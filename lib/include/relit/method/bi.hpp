@@ -1,5 +1,5 @@
-// Bi et al.'s Neural Reflectance Field adapted to participating media (seed appendix D; DESIGN §4.5), the
-// "bi" method.
+// Bi et al.'s Neural Reflectance Field adapted to participating media (Zheng et al. 2021, appendix D; docs/design.md
+// §4.5), the "bi" method.
 //
 //   coarse: N_c stratified samples ──► coarse net ──► σ, albedo ──► coarse image     (HG phase with g = 0)
 //           weights w_i ──► N_f importance samples (hierarchical sampling, kernels/hierarchical.cl)

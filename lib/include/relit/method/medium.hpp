@@ -38,7 +38,7 @@
 
 namespace relit::method {
 
-/// The environment light of 'env+point' datasets (DESIGN §4.2-4.3): S_env over N_e importance-sampled
+/// The environment light of 'env+point' datasets (docs/design.md §4.2-4.3): S_env over N_e importance-sampled
 /// directions, each with its own visibility query, and the position-only SH head c_env(x).
 struct EnvironmentSettings {
   bool enabled = false;                 ///< the model has c_env and trains S_env (relit train sets it from the dataset)

@@ -1,4 +1,4 @@
-// Model: what every method of relit (DESIGN §4.3-4.5) gives the trainer and the renderer of images.
+// Model: what every method of relit (docs/design.md §4.3-4.5) gives the trainer and the renderer of images.
 //
 // A method owns its networks and two flat parameter buffers — θ (everything the render loss trains) and ψ
 // (the visibility network, trained only against marches through the learned density) — with a cached density
@@ -144,6 +144,8 @@ struct MethodEntry {
   std::string name;
   /// Where the method is listed in method_names() (and in docs/config.md): by rank, then by name.
   int rank = 0;
+  /// What the method is, in a few words (the run config's "method" key lists them).
+  std::string summary;
   Factory create;
   /// Appends every key of the method's "model" config, per JSON object (pointers "/model...").
   std::function<void(config::Docs&)> describe;
@@ -156,8 +158,8 @@ class MethodRegistry {
   void add(MethodEntry entry);
   /// Registers class M: constructible as M(device, config, pointer), and static M::describe(config::Docs&).
   template <class M>
-  void add(const std::string& name, int rank) {
-    add({name, rank,
+  void add(const std::string& name, int rank, const std::string& summary) {
+    add({name, rank, summary,
          [](const Device& device, const Json& config, const std::string& pointer) -> std::unique_ptr<Model> {
            return std::make_unique<M>(device, config, pointer);
          },

@@ -1,4 +1,4 @@
-// NeRV adapted to participating media (seed appendix D; DESIGN §4.5), the "nerv" method.
+// NeRV adapted to participating media (Zheng et al. 2021, appendix D; docs/design.md §4.5), the "nerv" method.
 //
 //   property MLP F_θ(x)       ──► σ, albedo, g                      (Ours' property net, no SH head)
 //   visibility MLP V_ψ(x, ω)  ──► V and the expected termination depth D: a trunk on the encoded position

@@ -1,5 +1,5 @@
 // Training of every method (Ours and the baselines): steps, validation, logs, checkpoints and resuming
-// (DESIGN §4.3, §7). Presets are in presets.hpp, relighting a trained model in render_image.hpp, loading one
+// (docs/design.md §4.3, §7). Presets are in presets.hpp, relighting a trained model in render_image.hpp, loading one
 // from a checkpoint in model_io.hpp, the dataset reader in relit/dataset.hpp.
 //
 //   auto config = relit::method::preset("fast");                       // presets.hpp; or a JSON file's contents

@@ -2,7 +2,7 @@
 //
 //   Identity            x -> scale * x + offset
 //   Frequency           NeRF positional encoding: sin, cos of 2^k pi x (double-angle recurrences)
-//   SphericalHarmonics  real SH of a unit direction (seed eq. 2), degree 1..10
+//   SphericalHarmonics  real SH of a unit direction (Zheng et al. 2021, eq. 2), degree 1..10
 //   HashGrid            instant-ngp multiresolution hash encoding (trainable)
 //   Composite           nested encodings over consecutive input dims, outputs concatenated
 //

@@ -1,4 +1,4 @@
-// EnvironmentSamples: the environment light of the neural renderer (DESIGN §4.2, kernels/environment.cl).
+// EnvironmentSamples: the environment light of the neural renderer (docs/design.md §4.2, kernels/environment.cl).
 //
 //   S_env(x) = (1/N_e) sum_j p(w_o, w_j; g) V(x, w_j) E(w_j) / pdf(w_j)
 //

@@ -1,6 +1,6 @@
 // Visibility targets: the transmittance of a density grid from each renderer sample toward its ray's point
 // light, or toward each environment direction (kernels/visibility.cl). The method trains its visibility
-// network against these (DESIGN §4.3).
+// network against these (docs/design.md §4.3).
 #pragma once
 
 #include <relit/cl/buffer.hpp>

@@ -1,4 +1,4 @@
-// VolumeRenderer: the neural volume renderer of DESIGN §4.2 (kernels/render.cl), forward and backward.
+// VolumeRenderer: the neural volume renderer of docs/design.md §4.2 (kernels/render.cl), forward and backward.
 //
 // The renderer does not know about networks: the method queries its networks at the sample positions the
 // renderer places, packs the results into one BatchMatrix of per-sample properties, and the renderer turns
@@ -6,7 +6,7 @@
 //
 //   sample():   rays → t_near/t_far, stratified sample distances t, deltas, sample positions (BatchMatrix x 3)
 //   forward():  properties → per-sample radiance a ⊙ (S_dir + S_env + S_ind) (scattering "phase"), or the
-//               BRDF-weighted light of a solid's surface (scattering "brdf", DESIGN §4.4) → composited colour
+//               BRDF-weighted light of a solid's surface (scattering "brdf", docs/design.md §4.4) → composited colour
 //               and transmittance
 //   backward(): dL/dcolour → dL/dproperties (sigma, albedo, g or roughness, SH coefficients, the raw normal;
 //               zero for every visibility column, whose network the render loss must not reach)
@@ -52,12 +52,12 @@ struct RendererSettings {
   /// clamp is inactive; an ablation and a fast preview). forward()/backward() then take the view basis
   /// (view_basis()) in place of the directions' basis, and ignore `dirs`. Scattering "phase" only.
   bool closed_form_indirect = false;
-  /// N_e, importance-sampled environment directions of S_env (DESIGN §4.2 uses 32); 0: no environment
+  /// N_e, importance-sampled environment directions of S_env (docs/design.md §4.2 uses 32); 0: no environment
   /// light. With N_e > 0 the property matrix ends in N_e visibility columns and forward()/backward() need
   /// the EnvironmentSamples of the iteration.
   std::uint32_t n_env_dirs = 0;
-  /// How a sample scatters light toward the camera: "phase" (media, DESIGN §4.2: radiance a ⊙ S with the HG
-  /// phase function of column kG) or "brdf" (solids, "Ours + BRDF", DESIGN §4.4: column kRoughness holds
+  /// How a sample scatters light toward the camera: "phase" (media, docs/design.md §4.2: radiance a ⊙ S with the HG
+  /// phase function of column kG) or "brdf" (solids, "Ours + BRDF", docs/design.md §4.4: column kRoughness holds
   /// the roughness r in (0, 1), three more columns at normal_column() the raw normal n_raw, which the
   /// renderer normalises; each light term is f(w_o, w_i) max(0, n.w_i) times its incident light with f
   /// the BRDF of kernels/brdf.clh, the path tracer's). "brdf" has no closed-form indirect light.
@@ -126,7 +126,7 @@ class VolumeRenderer {
 
 /// The K directions of the indirect-light sum, uniform on the sphere and drawn anew per iteration from
 /// (seed, iteration) on the device, and their SH basis values, computed once and shared by the whole batch
-/// (seed appendix B).
+/// (Zheng et al. 2021, appendix B).
 class IndirectBasis {
  public:
   IndirectBasis(const Device& device, std::uint32_t n_dirs, int sh_lmax);

@@ -2,7 +2,7 @@
 //
 //   sigma_t(x) = density_scale * density(x)      (extinction, 1/unit length; trilinear in the density grid)
 //   albedo(x)  = albedo_grid(x) if present, else the constant albedo (RGB, scattering / extinction)
-//   phase      = Henyey-Greenstein with asymmetry g in (-1, 1) (DESIGN §4.1: directions point away, +2g form)
+//   phase      = Henyey-Greenstein with asymmetry g in (-1, 1) (docs/design.md §4.1: directions point away, +2g form)
 #pragma once
 
 #include <relit/scene/grid.hpp>
