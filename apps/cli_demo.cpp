@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 namespace fs = std::filesystem;
 
@@ -18,7 +19,7 @@ namespace {
 
 struct DemoOptions {
   std::string out = "demo", device;
-  long long steps = -1;
+  std::optional<long long> steps;  // unset: the fast preset's
 };
 
 int run_demo(const DemoOptions& o) {
@@ -66,7 +67,7 @@ void add_demo_command(CLI::App& app) {
                                  "test views, print PSNR/SSIM and write images");
   cmd->add_option("--out,-o", o->out, "demo folder (data/cloud, run/, run/eval/); reruns reuse what is there")
       ->capture_default_str();
-  cmd->add_option("--steps", o->steps, "training steps (default: the fast preset's)");
+  cmd->add_option("--steps", o->steps, "training steps (default: the fast preset's)")->check(at_least(0));
   cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
   cmd->final_callback([o] {
     if (const int code = run_demo(*o)) throw CLI::RuntimeError(code);

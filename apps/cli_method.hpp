@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -10,7 +11,7 @@ namespace relit::cli {
 
 struct TrainOptions {
   std::string dataset, config = "fast", out, device, method;
-  long long steps = -1, seed = -1;
+  std::optional<long long> steps, seed;  // unset: the config's training.steps and training.seed
   double minutes = 0;
   bool resume = false;
   unsigned profile = 0;

@@ -13,12 +13,15 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 namespace fs = std::filesystem;
 
 namespace relit::cli {
 
 namespace {
+
+const std::vector<float> kDefaultLight{0, -3, 3}, kDefaultIntensity{600};
 
 std::vector<float> triple(const std::vector<float>& v, const char* what) {
   if (v.size() == 1) return {v[0], v[0], v[0]};
@@ -30,8 +33,9 @@ struct RenderOptions {
   std::string run, out, device, view, visibility, environment;
   float env_scale = 1.0f;
   bool env_visible = false;
-  std::vector<float> eye{0, -4, 1}, target{0, 0, 0}, light{0, -3, 3}, intensity{600};
-  int resolution = 0;  // 0: 128, or the view's
+  std::vector<float> eye{0, -4, 1}, target{0, 0, 0};
+  std::optional<std::vector<float>> light, intensity;  // unset: the view's, else kDefaultLight, kDefaultIntensity
+  std::optional<int> resolution;                       // unset: 128, or the view's width
   float fov = 0.8f;
   std::uint32_t spp = 1;
 };
@@ -55,22 +59,25 @@ int run_render(const RenderOptions& o) {
       throw InvalidArgument("--view: no view " + std::to_string(index) + " in split '" + split + "'");
     camera = it->second[index].camera;
     light = it->second[index].light;
-    if (o.resolution > 0) {  // the view's camera at another resolution: same field of view and aspect
-      camera.height = std::max(1, static_cast<int>(std::lround(double(camera.height) * o.resolution / camera.width)));
-      camera.width = o.resolution;
+    if (o.resolution) {  // the view's camera at another resolution: same field of view and aspect
+      camera.height = std::max(1, static_cast<int>(std::lround(double(camera.height) * *o.resolution / camera.width)));
+      camera.width = *o.resolution;
     }
     if (model->has_environment()) environment = method::dataset_environment(o.view.substr(0, b));
   } else {
     const auto e = triple(o.eye, "--eye"), t = triple(o.target, "--target");
-    const int res = o.resolution > 0 ? o.resolution : 128;
+    const int res = o.resolution.value_or(128);
     camera = Camera::look_at({e[0], e[1], e[2]}, {t[0], t[1], t[2]}, {0, 0, 1}, o.fov, res, res);
   }
-  if (o.view.empty() || o.light != std::vector<float>{0, -3, 3}) {
-    const auto l = triple(o.light, "--light");
+  // Without --view the defaults light the scene; with it, the view's light unless --light/--intensity are given.
+  if (o.view.empty() || o.light) {
+    const auto l = triple(o.light.value_or(kDefaultLight), "--light");
     light.position = {l[0], l[1], l[2]};
   }
-  const auto i = triple(o.intensity, "--intensity");
-  if (o.view.empty() || o.intensity != std::vector<float>{600}) light.intensity = {i[0], i[1], i[2]};
+  if (o.view.empty() || o.intensity) {
+    const auto i = triple(o.intensity.value_or(kDefaultIntensity), "--intensity");
+    light.intensity = {i[0], i[1], i[2]};
+  }
   if (o.environment == "none") {
     environment.reset();
   } else if (!o.environment.empty()) {
@@ -103,10 +110,13 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--target", o->target, "point the camera looks at (x y z)")->expected(3);
   cmd->add_option("--resolution", o->resolution,
                   "image width and height (default 128; with --view: the view's "
-                  "width, the height keeping its aspect)");
+                  "width, the height keeping its aspect)")
+      ->check(at_least(1));
   cmd->add_option("--fov", o->fov, "horizontal field of view, radians")->capture_default_str();
-  cmd->add_option("--light", o->light, "point light position (x y z)")->expected(3);
-  cmd->add_option("--intensity", o->intensity, "light intensity in W/sr: one value (white) or r g b")->expected(1, 3);
+  cmd->add_option("--light", o->light, "point light position (x y z; default 0 -3 3, or the --view's)")->expected(3);
+  cmd->add_option("--intensity", o->intensity,
+                  "light intensity in W/sr: one value (white) or r g b (default 600, or the --view's)")
+      ->expected(1, 3);
   cmd->add_option("--visibility", o->visibility, "network or march (default: the model's setting)")
       ->check(CLI::IsMember({"network", "march"}));
   cmd->add_option("--environment", o->environment,

@@ -42,7 +42,7 @@ int run_train(const TrainOptions& o) {
     config = method::load_run_config(method::config_for_method(o.config, o.method));
     method::set_method(config, o.method, o.config);
   }
-  if (o.seed >= 0) config["training"]["seed"] = o.seed;
+  if (o.seed) config["training"]["seed"] = *o.seed;
   const Device device = Device::select(o.device);
   method::Trainer trainer(device, o.dataset, config);
   if (o.profile) {
@@ -59,7 +59,7 @@ int run_train(const TrainOptions& o) {
   }
   trainer.set_output(o.out);
   if (o.resume) trainer.load_checkpoint(checkpoint);
-  const std::uint64_t target = o.steps >= 0 ? std::uint64_t(o.steps) : trainer.settings().steps;
+  const std::uint64_t target = o.steps ? std::uint64_t(*o.steps) : trainer.settings().steps;
   std::cerr << "relit train: " << o.dataset << " → " << o.out << ", " << trainer.model().n_params() << " + "
             << trainer.model().n_vis_params() << " parameters, steps " << trainer.steps() << " → " << target << ", on "
             << device.info().name << "\n";
@@ -101,7 +101,8 @@ void add_train_command(CLI::App& app) {
                   "ours, bi (Bi et al.) or nerv (NeRV); with a preset name, that method's preset (bi-fast, ...)");
   cmd->add_option("--minutes", o->minutes, "stop after this much training time (a checkpoint is written)");
   cmd->add_option("--out,-o", o->out, "run folder: config.json, log.jsonl, checkpoint.relit")->required();
-  cmd->add_option("--steps", o->steps, "train until this step (default: the config's training.steps)");
+  cmd->add_option("--steps", o->steps, "train until this step (default: the config's training.steps)")
+      ->check(at_least(0));
   cmd->add_option("--seed", o->seed, "training seed (default: the config's training.seed)");
   cmd->add_flag("--resume", o->resume, "continue the run in --out from its checkpoint");
   cmd->add_option("--profile", o->profile, "time each stage over this many steps, print it and exit (nothing written)");
