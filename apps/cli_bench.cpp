@@ -3,10 +3,11 @@
 // launch), a warm-up and `repeats` timed runs are kept apart; results go to a table and to JSON, and
 // `relit bench --compare a.json b.json` prints the ratios between two runs (e.g. two devices).
 #include "cli.hpp"
-#include "hashgrid_reference.hpp"  // tests/support: double-precision references shared with the tests
-#include "mlp_reference.hpp"
-#include "peak_reference.hpp"
-#include "renderer_reference.hpp"
+
+#include <relit/verify/hashgrid_reference.hpp>  // the double-precision references, shared with the tests
+#include <relit/verify/mlp_reference.hpp>
+#include <relit/verify/peak_reference.hpp>
+#include <relit/verify/renderer_reference.hpp>
 
 #include <relit/cl/program.hpp>
 #include <relit/dataset.hpp>

@@ -130,7 +130,7 @@ bool check(bool ok, const std::string& what, double error, Json& report) {
   return ok;
 }
 
-// The memory roofline of the hash grid (kernels/random_access.cl): the device's rate of independent random
+// The memory roofline of the hash grid (bench/kernels/random_access.cl): the device's rate of independent random
 // 8-byte reads and read-modify-writes in tables of `bytes`, one work-item per compute unit, as many misses in
 // flight as the cores allow. `tables` > 1: that many tables used in turn, as the hash grid uses its levels'
 // (reads: all work-items walk the same `tables` tables; read-modify-writes: the work-items share them out,

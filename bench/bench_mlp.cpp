@@ -7,8 +7,8 @@
 //
 // FLOPs: 2 per multiply-add; forward = 2 * sum(in * out) per sample; training step = 3 x forward
 // (forward + dL/dinput + dL/dweights). Timings are medians over --reps runs, each ended by clFinish.
-#include "mlp_reference.hpp"
-#include "peak_reference.hpp"  // tests/support
+#include <relit/verify/mlp_reference.hpp>
+#include <relit/verify/peak_reference.hpp>
 
 #include <relit/cl/program.hpp>
 #include <relit/nn/fully_fused_mlp.hpp>

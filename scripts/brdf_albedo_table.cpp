@@ -1,12 +1,12 @@
 // Writes kernels/brdf_albedo.clh: the specular albedo E(mu; r) of the GGX lobe of kernels/brdf.clh on a
 // 32 x 32 grid, and its cosine-weighted average E_avg(r), which the energy-conserving diffuse term needs
-// (docs/method.md, "The BRDF"). The quadrature is the host reference's (tests/support/brdf_reference.hpp),
-// which the tests also check the table against. Regenerate after changing the specular lobe:
+// (docs/method.md, "The BRDF"). The quadrature is the host reference's
+// (lib/verify/include/relit/verify/brdf_reference.hpp), which the tests also check the table against. Regenerate after changing the specular lobe:
 //
 //   g++ -O2 -std=c++17 -o build/brdf_albedo_table scripts/brdf_albedo_table.cpp
 //   build/brdf_albedo_table > kernels/brdf_albedo.clh
 #define RELIT_BRDF_TABLE_GENERATOR
-#include "../tests/support/brdf_reference.hpp"
+#include "../lib/verify/include/relit/verify/brdf_reference.hpp"
 
 #include <cstdio>
 #include <cstring>

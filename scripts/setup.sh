@@ -15,10 +15,10 @@ debian_packages=(
   build-essential cmake ninja-build pkg-config git clang-format  # clang-format: the format test
   ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo   # OpenCL ICD loader, C and C++ headers
   pocl-opencl-icd                                                 # the portable CPU OpenCL driver
-  libclblast-dev                                                  # GEMMs and the benchmark peer
+  libclblast-dev                                                  # bench_mlp's GEMM peer (RELIT_WITH_CLBLAST)
   libopenimageio-dev openimageio-tools                            # EXR/PNG/HDR images
   libeigen3-dev libopenblas-dev                                   # host math, references, BLAS peer
-  libgtest-dev libgmock-dev libbenchmark-dev                      # tests and benchmarks
+  libgtest-dev libgmock-dev                                       # tests
   pybind11-dev nlohmann-json3-dev libcli11-dev                    # binding, JSON, command line
   libopenvdb-dev libboost-iostreams-dev                           # OpenVDB volume import (its CMake module needs Boost.Iostreams)
   python3-dev python3-venv python3-pip                            # Python headers and venv

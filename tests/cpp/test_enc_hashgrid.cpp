@@ -2,7 +2,7 @@
 // independence, determinism, padding rows, accumulation), input gradient by finite differences, and a small
 // fitting run that trains the grid alone (linear readout) to reproduce an image.
 #include "enc_test_support.hpp"
-#include "hashgrid_reference.hpp"
+#include <relit/verify/hashgrid_reference.hpp>
 
 #include <numeric>
 

@@ -2,7 +2,7 @@
 // width, with and without skips, biases and heads, several batch sizes; central finite differences; the
 // accumulate flag; bit-for-bit determinism; config errors.
 #include "test_support.hpp"
-#include "mlp_reference.hpp"
+#include <relit/verify/mlp_reference.hpp>
 
 #include <relit/nn/fully_fused_mlp.hpp>
 #include <relit/nn/network_with_encoding.hpp>

@@ -1,4 +1,5 @@
-// The first test of the suite: every program in kernels/ builds on every device under test.
+// The first test of the suite: every program in kernels/ (and the tests' own, tests/kernels) builds on every
+// device under test.
 // CTest makes every other test depend on this one, so a machine without OpenCL fails the suite.
 #include "test_support.hpp"
 

@@ -2,11 +2,11 @@
 // transmittance (ratio and delta tracking vs exp(-int sigma)), single scattering vs numerical integration,
 // the white furnace, determinism. Tolerances come from the sample variance (5-6 sigma) plus stated
 // quadrature/float allowances; the seeds are fixed, so the tests are deterministic.
-#include "brdf_reference.hpp"
 #include "test_support.hpp"
 
 #include <relit/pathtrace.hpp>
 #include <relit/scene/procedural.hpp>
+#include <relit/verify/brdf_reference.hpp>
 
 #include <array>
 #include <cmath>
@@ -377,7 +377,7 @@ namespace relit {
 
 namespace {
 
-// The double reference of the BRDF (tests/support/brdf_reference.hpp) with n = +z.
+// The double reference of the BRDF (relit/verify/brdf_reference.hpp) with n = +z.
 double brdf_ref(const double wo[3], const double wi[3], double base, double r) {
   return reference::brdf({0, 0, 1}, {wo[0], wo[1], wo[2]}, {wi[0], wi[1], wi[2]}, base, r);
 }

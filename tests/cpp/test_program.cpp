@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -41,8 +42,8 @@ TEST(Program, FillUniformIsReproducibleAndInRange) {
   const Device d = test::test_device();
   const unsigned n = 100000;
   Buffer<float> a(d, n), b(d, n);
-  d.kernel("util.cl", "fill_uniform_f32").args(n, 42u, -2.f, 3.f, a).launch(n, 64);
-  d.kernel("util.cl", "fill_uniform_f32").args(n, 42u, -2.f, 3.f, b).launch(n, 256);  // other launch shape
+  d.kernel("fill_uniform.cl", "fill_uniform_f32").args(n, 42u, -2.f, 3.f, a).launch(n, 64);
+  d.kernel("fill_uniform.cl", "fill_uniform_f32").args(n, 42u, -2.f, 3.f, b).launch(n, 256);  // other launch shape
   const auto av = a.read(), bv = b.read();
   EXPECT_EQ(av, bv);
   double mean = 0;
@@ -52,6 +53,26 @@ TEST(Program, FillUniformIsReproducibleAndInRange) {
     mean += v;
   }
   EXPECT_NEAR(mean / n, 0.5, 0.02);  // 5 sigma of a U(-2,3) mean over 1e5 samples is 0.023
+}
+
+TEST(Program, AddedSourcesBuildWithRelitsHeadersAndTheirNamesAreChecked) {
+  const std::string text =
+      "#include \"common.clh\"\n__kernel void k(__global uint* out) { out[0] = 7u + relit_hash(0u) * 0u; }\n";
+  add_kernel_source("relit_test_added.cl", text);
+  EXPECT_NO_THROW(add_kernel_source("relit_test_added.cl", text));  // the same text again
+  EXPECT_THROW(add_kernel_source("relit_test_added.cl", text + "\n"), InvalidArgument);
+  EXPECT_THROW(add_kernel_source("util.cl", text), InvalidArgument);  // relit ships it
+  EXPECT_THROW(add_kernel_source("sub/x.cl", text), InvalidArgument);
+  EXPECT_THROW(add_kernel_source("x.txt", text), InvalidArgument);
+  const Device d = test::test_device();
+  Buffer<unsigned> out(d, 1);
+  d.kernel("relit_test_added.cl", "k").args(out).launch(1);
+  EXPECT_EQ(out.read()[0], 7u);
+  std::vector<std::string> files;
+  for (const auto& c : check_programs(d)) files.push_back(c.file);
+  EXPECT_NE(std::find(files.begin(), files.end(), "relit_test_added.cl"), files.end());
+  EXPECT_NE(std::find(files.begin(), files.end(), "pathtrace_probe.cl"), files.end());  // tests/kernels
+  EXPECT_NE(std::find(files.begin(), files.end(), "util.cl"), files.end());
 }
 
 TEST(Program, CacheIsKeyedBySourceAndOptions) {

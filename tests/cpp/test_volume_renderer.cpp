@@ -1,6 +1,6 @@
 // The neural volume renderer: forward against a double-precision reference of docs/design.md §4.2 on random inputs,
 // backward against central finite differences of that reference, sampling, and known answers.
-#include "renderer_reference.hpp"
+#include <relit/verify/renderer_reference.hpp>
 #include "test_support.hpp"
 
 #include <relit/render/environment.hpp>

@@ -118,6 +118,34 @@ def test_cli_train_resume_and_render(dataset, tmp_path):
     assert r.returncode == 0, r.stderr
 
 
+def test_cli_render_light_options_given_at_their_default_values_override_the_view(device, tmp_path):
+    # `relit render --view` keeps the view's light unless --light / --intensity are given, also when they are
+    # given the values they default to without --view (0 -3 3 and 600).
+    from skimage.io import imread
+
+    ds = str(tmp_path / "ds")
+    scene = relit.Scene.builtin("cloud", seed=1, resolution=16)
+    relit.generate_dataset(scene, ds, resolution=12, train=2, val=1, test=1, spp=1, seed=3, intensity=300,
+                           device=device)
+    light = json.load(open(os.path.join(ds, "transforms_test.json")))["frames"][0]["light"]
+    assert light["intensity"] == [300, 300, 300] and light["position"] != [0, -3, 3]
+    run = str(tmp_path / "run")
+    list(relit.Trainer(ds, config=CONFIG, out=run, device=device).run(2))
+
+    def render(name, *extra):
+        out = str(tmp_path / (name + ".png"))
+        r = run_python(["-m", "relit", "render", run, "--view", ds + ":test:0", "--out", out] + list(extra))
+        assert r.returncode == 0, r.stderr
+        return imread(out).astype(int)
+
+    view = render("view")
+    assert view.max() > 0
+    assert np.array_equal(render("view_intensity", "--intensity", "300"), view)  # the view's own: the same image
+    brighter = render("default_intensity", "--intensity", "600")
+    assert (brighter >= view).all() and (brighter > view).any()
+    assert not np.array_equal(render("default_light", "--light", "0", "-3", "3"), view)
+
+
 def test_env_point_training_and_rendering_under_the_environment(dataset, device, tmp_path):
     ds = str(tmp_path / "env")
     scene = relit.Scene.builtin("cloud", seed=1, resolution=16)

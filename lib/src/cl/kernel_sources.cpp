@@ -3,6 +3,7 @@
 
 #include "embedded_files.hpp"
 
+#include <relit/cl/device.hpp>
 #include <relit/error.hpp>
 #include <relit/io/file.hpp>
 #include <relit/log.hpp>
@@ -10,6 +11,8 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <mutex>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -17,6 +20,27 @@
 namespace relit::detail {
 
 namespace {
+
+// The sources added with relit::add_kernel_source(), by name.
+struct AddedSources {
+  std::mutex mutex;
+  std::map<std::string, std::string> files;
+};
+
+AddedSources& added_sources() {
+  static AddedSources added;  // constructed on first use: sources may be added by static initialisers
+  return added;
+}
+
+const char* embedded_text(const std::string& name) {
+  for (const auto& k : embedded_kernels())
+    if (name == k.name) return k.text;
+  return nullptr;
+}
+
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() > suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
 
 std::string raw_source(const std::string& name, const std::string& included_from) {
   if (const char* dir = std::getenv("RELIT_KERNEL_DIR"); dir && *dir) {
@@ -30,12 +54,18 @@ std::string raw_source(const std::string& name, const std::string& included_from
       return io::read_file(path.string());
     }
   }
-  for (const auto& k : embedded_kernels())
-    if (name == k.name) return k.text;
+  if (const char* text = embedded_text(name)) return text;
+  auto& added = added_sources();
+  std::lock_guard<std::mutex> lock(added.mutex);
+  if (auto it = added.files.find(name); it != added.files.end()) return it->second;
   std::string message = "no kernel source '" + name + "'";
   if (!included_from.empty()) message += " (included from " + included_from + ")";
   message += "; relit has:";
   for (const auto& k : embedded_kernels()) message += std::string(" ") + k.name;
+  if (!added.files.empty()) {
+    message += "; added:";
+    for (const auto& [file, text] : added.files) message += " " + file;
+  }
   throw IOError(message);
 }
 
@@ -71,11 +101,13 @@ std::string resolve_kernel_source(const std::string& file) {
 
 std::vector<std::string> program_files() {
   std::vector<std::string> files;
-  for (const auto& k : embedded_kernels()) {
-    const std::string name = k.name;
-    if (name.size() > 3 && name.compare(name.size() - 3, 3, ".cl") == 0) files.push_back(name);
-  }
-  return files;  // the generator emits them sorted
+  for (const auto& k : embedded_kernels())
+    if (ends_with(k.name, ".cl")) files.push_back(k.name);  // the generator emits them sorted
+  auto& added = added_sources();
+  std::lock_guard<std::mutex> lock(added.mutex);
+  for (const auto& [name, text] : added.files)  // sorted by the map, after relit's own
+    if (ends_with(name, ".cl")) files.push_back(name);
+  return files;
 }
 
 std::uint64_t fnv1a(const std::string& text) {
@@ -88,3 +120,20 @@ std::uint64_t fnv1a(const std::string& text) {
 }
 
 }  // namespace relit::detail
+
+namespace relit {
+
+void add_kernel_source(const std::string& name, const std::string& text) {
+  if (name.find_first_of("/\\") != std::string::npos ||
+      !(detail::ends_with(name, ".cl") || detail::ends_with(name, ".clh")))
+    throw InvalidArgument("add_kernel_source: '" + name + "' is not a kernel file name (x.cl or x.clh, no folder)");
+  if (detail::embedded_text(name))
+    throw InvalidArgument("add_kernel_source: relit already has a kernel source '" + name + "'; choose another name");
+  auto& added = detail::added_sources();
+  std::lock_guard<std::mutex> lock(added.mutex);
+  const auto [it, inserted] = added.files.emplace(name, text);
+  if (!inserted && it->second != text)
+    throw InvalidArgument("add_kernel_source: '" + name + "' was already added with another text");
+}
+
+}  // namespace relit

@@ -100,7 +100,14 @@ class Device {
   std::shared_ptr<detail::DeviceState> m_state;
 };
 
-/// Outcome of building one embedded program on a device (relit devices, the first test of the suite).
+/// Adds a kernel source that Device::program() finds under `name` ("x.cl" or "x.clh"), like the files of
+/// kernels/ that relit embeds: for a program's own kernels, such as the probe kernels of relit's tests and the
+/// peers of its benchmarks, which are no part of the library. The text may #include relit's headers
+/// ("common.clh"); RELIT_KERNEL_DIR still takes precedence. Adding a name again with the same text does
+/// nothing; a name relit ships, or one already added with another text, throws InvalidArgument.
+void add_kernel_source(const std::string& name, const std::string& text);
+
+/// Outcome of building one program on a device (relit devices, the first test of the suite).
 struct ProgramCheck {
   std::string file;
   bool ok = false;
@@ -108,7 +115,8 @@ struct ProgramCheck {
   std::string error;  ///< the BuildError message when !ok
 };
 
-/// Builds every program in kernels/ on `device` with its default definitions.
+/// Builds every program in kernels/, and every one added with add_kernel_source(), on `device` with its
+/// default definitions.
 std::vector<ProgramCheck> check_programs(const Device& device);
 
 }  // namespace relit

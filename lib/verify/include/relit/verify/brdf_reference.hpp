@@ -12,7 +12,7 @@
 #include <cmath>
 
 #ifndef RELIT_BRDF_TABLE_GENERATOR
-#include "../../kernels/brdf_albedo.clh"
+#include "brdf_albedo.clh"  // kernels/, on relit::verify's include path
 #endif
 
 namespace relit::reference {

@@ -1,0 +1,81 @@
+// relit eval: relight a run's test views and report PSNR/SSIM (metrics.json, metrics.md, contact sheets).
+#include "cli.hpp"
+#include "cli_method.hpp"
+#include "progress_bar.hpp"
+
+#include <relit/cl/device.hpp>
+#include <relit/dataset.hpp>
+#include <relit/error.hpp>
+#include <relit/io/checkpoint.hpp>
+#include <relit/method/evaluate.hpp>
+#include <relit/method/model_io.hpp>
+#include <relit/report.hpp>
+
+#include <filesystem>
+#include <iostream>
+
+namespace fs = std::filesystem;
+
+namespace relit::cli {
+
+namespace {
+
+std::vector<std::string> default_splits(const std::string& dataset) {
+  std::vector<std::string> out{"test"};
+  for (const auto& [name, frames] : read_dataset(dataset).splits)
+    if (name.rfind("test_", 0) == 0 && !frames.empty()) out.push_back(name);
+  return out;
+}
+
+}  // namespace
+
+int run_eval(const EvalOptions& o) {
+  const Device device = Device::select(o.device);
+  const std::string checkpoint = (fs::path(o.run) / "checkpoint.relit").string();
+  const auto model = method::load_model(device, checkpoint);
+  std::string dataset = o.dataset;
+  const Json header = io::load_checkpoint(checkpoint).header;
+  if (dataset.empty()) dataset = header.at("config").value("dataset", std::string());
+  if (dataset.empty()) throw InvalidArgument("the run does not record its dataset; pass --dataset");
+  method::EvalOptions eo;
+  eo.splits = o.splits.empty() ? default_splits(dataset) : o.splits;
+  eo.max_views = o.max_views;
+  eo.write_images = !o.no_images;
+  eo.visibility = o.visibility;
+  eo.spp = o.spp;
+  const std::string out = o.out.empty() ? (fs::path(o.run) / "eval").string() : o.out;
+  const Json meta{{"run", o.run},
+                  {"dataset", dataset},
+                  {"step", header.value("step", Json())},
+                  {"device", device.info().name},
+                  {"visibility", o.visibility.empty() ? model->inference_visibility() : o.visibility},
+                  {"spp", o.spp}};
+  ProgressBar bar("eval");
+  const auto views = method::evaluate(*model, dataset, out, eo, meta, [&](const Progress& p) { return bar(p); });
+  bar.finish();
+  std::cout << report::format_summary_lines(views) << "report written to " << out
+            << " (metrics.json, metrics.md, contact sheets)\n";
+  return 0;
+}
+
+void add_eval_command(CLI::App& app) {
+  auto o = std::make_shared<EvalOptions>();
+  auto* cmd =
+      app.add_subcommand("eval", "relight a run's test views and report PSNR/SSIM (JSON, Markdown, contact sheets)");
+  cmd->add_option("run", o->run, "run folder written by relit train")->required();
+  cmd->add_option("--dataset", o->dataset, "dataset folder (default: the run's)");
+  cmd->add_option("--split", o->splits, "splits to evaluate (default: test and every test_* set)");
+  cmd->add_option("--max-views", o->max_views, "at most this many views per split (0: all)")->capture_default_str();
+  cmd->add_option("--out,-o", o->out, "report folder (default: RUN/eval)");
+  cmd->add_flag("--no-images", o->no_images, "write only the metrics and contact sheets, not every prediction");
+  cmd->add_option("--visibility", o->visibility, "network or march (default: the model's setting)")
+      ->check(CLI::IsMember({"network", "march"}));
+  cmd->add_option("--spp", o->spp, "rays per pixel, averaged over an n x n grid in the pixel (1, 4, 9, ...)")
+      ->capture_default_str();
+  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
+  cmd->final_callback([o] {
+    if (const int code = run_eval(*o)) throw CLI::RuntimeError(code);
+  });
+}
+
+}  // namespace relit::cli

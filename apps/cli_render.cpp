@@ -1,0 +1,138 @@
+// relit render: relight a trained run, rendering a camera under a point light (and an environment).
+#include "cli.hpp"
+#include "progress_bar.hpp"
+
+#include <relit/cl/device.hpp>
+#include <relit/dataset.hpp>
+#include <relit/error.hpp>
+#include <relit/io/image.hpp>
+#include <relit/method/evaluate.hpp>
+#include <relit/method/model_io.hpp>
+#include <relit/method/render_image.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+
+namespace fs = std::filesystem;
+
+namespace relit::cli {
+
+namespace {
+
+const std::vector<float> kDefaultLight{0, -3, 3}, kDefaultIntensity{600};
+
+std::vector<float> triple(const std::vector<float>& v, const char* what) {
+  if (v.size() == 1) return {v[0], v[0], v[0]};
+  if (v.size() == 3) return v;
+  throw InvalidArgument(std::string(what) + " takes 1 or 3 values");
+}
+
+struct RenderOptions {
+  std::string run, out, device, view, visibility, environment;
+  float env_scale = 1.0f;
+  bool env_visible = false;
+  std::vector<float> eye{0, -4, 1}, target{0, 0, 0};
+  std::optional<std::vector<float>> light, intensity;  // unset: the view's, else kDefaultLight, kDefaultIntensity
+  std::optional<int> resolution;                       // unset: 128, or the view's width
+  float fov = 0.8f;
+  std::uint32_t spp = 1;
+};
+
+int run_render(const RenderOptions& o) {
+  const Device device = Device::select(o.device);
+  const auto model = method::load_model(device, (fs::path(o.run) / "checkpoint.relit").string());
+  Camera camera;
+  PointLight light;
+  std::shared_ptr<const EnvironmentLight> environment;  // --view of 'env+point' data: the dataset's
+  if (!o.view.empty()) {
+    // DATASET:SPLIT:INDEX — the camera and light of a dataset view.
+    const auto a = o.view.rfind(':'), b = o.view.rfind(':', a - 1);
+    if (a == std::string::npos || b == std::string::npos)
+      throw InvalidArgument("--view takes DATASET:SPLIT:INDEX, got '" + o.view + "'");
+    const auto desc = read_dataset(o.view.substr(0, b));
+    const std::string split = o.view.substr(b + 1, a - b - 1);
+    const auto it = desc.splits.find(split);
+    const std::size_t index = std::stoul(o.view.substr(a + 1));
+    if (it == desc.splits.end() || index >= it->second.size())
+      throw InvalidArgument("--view: no view " + std::to_string(index) + " in split '" + split + "'");
+    camera = it->second[index].camera;
+    light = it->second[index].light;
+    if (o.resolution) {  // the view's camera at another resolution: same field of view and aspect
+      camera.height = std::max(1, static_cast<int>(std::lround(double(camera.height) * *o.resolution / camera.width)));
+      camera.width = *o.resolution;
+    }
+    if (model->has_environment()) environment = dataset_environment(o.view.substr(0, b));
+  } else {
+    const auto e = triple(o.eye, "--eye"), t = triple(o.target, "--target");
+    const int res = o.resolution.value_or(128);
+    camera = Camera::look_at({e[0], e[1], e[2]}, {t[0], t[1], t[2]}, {0, 0, 1}, o.fov, res, res);
+  }
+  // Without --view the defaults light the scene; with it, the view's light unless --light/--intensity are given.
+  if (o.view.empty() || o.light) {
+    const auto l = triple(o.light.value_or(kDefaultLight), "--light");
+    light.position = {l[0], l[1], l[2]};
+  }
+  if (o.view.empty() || o.intensity) {
+    const auto i = triple(o.intensity.value_or(kDefaultIntensity), "--intensity");
+    light.intensity = {i[0], i[1], i[2]};
+  }
+  if (o.environment == "none") {
+    environment.reset();
+  } else if (!o.environment.empty()) {
+    environment =
+        std::make_shared<const EnvironmentLight>(read_image(o.environment), o.env_scale, o.env_visible, o.environment);
+  }
+  ProgressBar bar("render");
+  method::RenderSettings rs;
+  rs.visibility = o.visibility;
+  rs.environment = environment.get();
+  rs.spp = o.spp;
+  const Image img = method::render_image(*model, camera, light, rs, [&](const Progress& p) { return bar(p); });
+  bar.finish();
+  write_image(o.out, img);
+  std::cout << "image written to " << o.out << "\n";
+  return 0;
+}
+
+}  // namespace
+
+void add_render_command(CLI::App& app) {
+  auto o = std::make_shared<RenderOptions>();
+  auto* cmd = app.add_subcommand("render", "relight a trained run: render a camera under a point light");
+  cmd->add_option("run", o->run, "run folder written by relit train")->required();
+  cmd->add_option("--out,-o", o->out, "output image (.png: sRGB 8-bit, .exr: linear float)")->required();
+  cmd->add_option("--view", o->view,
+                  "use the camera (and light, unless --light/--intensity are given) of a dataset "
+                  "view: DATASET:SPLIT:INDEX");
+  cmd->add_option("--eye", o->eye, "camera position (x y z)")->expected(3);
+  cmd->add_option("--target", o->target, "point the camera looks at (x y z)")->expected(3);
+  cmd->add_option("--resolution", o->resolution,
+                  "image width and height (default 128; with --view: the view's "
+                  "width, the height keeping its aspect)")
+      ->check(at_least(1));
+  cmd->add_option("--fov", o->fov, "horizontal field of view, radians")->capture_default_str();
+  cmd->add_option("--light", o->light, "point light position (x y z; default 0 -3 3, or the --view's)")->expected(3);
+  cmd->add_option("--intensity", o->intensity,
+                  "light intensity in W/sr: one value (white) or r g b (default 600, or the --view's)")
+      ->expected(1, 3);
+  cmd->add_option("--visibility", o->visibility, "network or march (default: the model's setting)")
+      ->check(CLI::IsMember({"network", "march"}));
+  cmd->add_option("--environment", o->environment,
+                  "light the scene with this lat-long map (.exr/.hdr) as well, or 'none' (default: the dataset's "
+                  "map for --view of 'env+point' data); the model must have been trained on 'env+point' data");
+  cmd->add_option("--env-scale", o->env_scale, "radiance scale of --environment")->capture_default_str();
+  cmd->add_flag("--env-visible", o->env_visible, "camera rays that miss the medium see --environment");
+  cmd->add_option("--spp", o->spp,
+                  "rays per pixel, averaged over an n x n grid in the pixel (1, 4, 9, ...): "
+                  "anti-aliased edges, like the path tracer's box filter")
+      ->capture_default_str();
+  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
+  cmd->final_callback([o] {
+    if (const int code = run_render(*o)) throw CLI::RuntimeError(code);
+  });
+}
+
+}  // namespace relit::cli
