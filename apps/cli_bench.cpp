@@ -352,7 +352,7 @@ void add_adam(std::vector<Case>& cases, const Device& device, bool quick) {
   cases.push_back(c);
 }
 
-// The neural renderer's lighting and compositing (DESIGN §4.2: HG phase, point light, K = 64 direction SH
+// The neural renderer's lighting and compositing (docs/design.md §4.2: HG phase, point light, K = 64 direction SH
 // indirect sum with l_max = 5, alpha compositing), forward and backward, on 1200 rays x 64 samples of random
 // properties. Verified on a 32-ray scene through the same renderer: colours against the double reference, and
 // the backward pass as a directional derivative <dL/dprops, v> against a central difference of the reference.
@@ -363,7 +363,7 @@ struct RenderRun {
   std::uint32_t n_rays = 0;
   RenderRun(const Device& dev, const reference::RayScene& s) : n_rays(s.n_rays) {
     renderer = std::make_shared<render::VolumeRenderer>(
-        dev, render::RendererSettings{s.n_samples, int(std::lround(std::sqrt(double(s.n_sh)))) - 1, s.n_dirs});
+        dev, render::VolumeRendererSettings{s.n_samples, int(std::lround(std::sqrt(double(s.n_sh)))) - 1, s.n_dirs});
     const std::uint32_t n = s.n_rays * s.n_samples;
     rays = std::make_shared<Buffer<float>>(dev, s.rays);
     t = std::make_shared<Buffer<float>>(dev, n);

@@ -86,7 +86,7 @@ int run_render(const RenderOptions& o) {
         std::make_shared<const EnvironmentLight>(read_image(o.environment), o.env_scale, o.env_visible, o.environment);
   }
   ProgressBar bar("render");
-  method::RenderSettings rs;
+  method::ImageRenderSettings rs;
   rs.visibility = o.visibility;
   rs.environment = environment.get();
   rs.spp = o.spp;

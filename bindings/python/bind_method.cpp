@@ -63,7 +63,7 @@ py::array_t<float> render(const method::Model& model, const Camera& camera, cons
                           const std::string& visibility, std::uint32_t seed, const py::object& environment,
                           std::uint32_t spp) {
   const PointLight l = light_from(light);
-  method::RenderSettings rs;
+  method::ImageRenderSettings rs;
   rs.visibility = visibility;
   rs.seed = seed;
   rs.spp = spp;

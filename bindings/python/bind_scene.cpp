@@ -113,7 +113,7 @@ void bind_scene(py::module_& m) {
           cam = camera.cast<Camera>();
         }
         const std::vector<PointLight> ls = lights.is_none() ? scene.lights : lights.cast<std::vector<PointLight>>();
-        RenderSettings rs;
+        PathTraceSettings rs;
         rs.spp = spp, rs.seed = seed, rs.max_bounces = max_bounces;
         const Device dev = device_arg(device);
         const ProgressCallback cb = progress_arg(progress);

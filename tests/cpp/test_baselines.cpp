@@ -171,7 +171,7 @@ TEST(Methods, ImagesRenderInTilesOfAnySize) {
     config["environment"] = {{"enabled", true}, {"n_dirs", 4}};
     const auto model = method::create_model(dev, m, config);
     for (const EnvironmentLight* env : {static_cast<const EnvironmentLight*>(nullptr), &sky}) {
-      method::RenderSettings whole, tiles;
+      method::ImageRenderSettings whole, tiles;
       whole.environment = tiles.environment = env;
       whole.tile_rays = 63;
       tiles.tile_rays = 20;  // 20, 20, 20, 3
@@ -194,7 +194,7 @@ TEST(Methods, SamplesPerPixelAverageAGridInEachPixel) {
   const auto camera = [](int width, int height) {
     return Camera::look_at({0.3f, -2.5f, 0.8f}, {0, 0, 0}, {0, 0, 1}, 0.9f, width, height);
   };
-  method::RenderSettings one, four;
+  method::ImageRenderSettings one, four;
   four.spp = 4;
   four.tile_rays = 7;  // tiles that cut through the samples of a row
   const Image fine = method::render_image(*model, camera(2 * w, 2 * h), light, one);
@@ -214,7 +214,7 @@ TEST(Methods, SamplesPerPixelAverageAGridInEachPixel) {
       }
   EXPECT_LT(max_err, 1e-5 * max_value) << "largest pixel value " << max_value;
   EXPECT_GT(max_alias, 1e-3 * max_value) << "the test scene has no detail below a pixel";
-  method::RenderSettings bad;
+  method::ImageRenderSettings bad;
   bad.spp = 3;
   EXPECT_THROW(method::render_image(*model, camera(w, h), light, bad), InvalidArgument);
   bad.spp = 0;
@@ -249,7 +249,7 @@ TEST(Bi, FineSamplesFollowTheCoarseWeights) {
   const Camera cam = Camera::look_at({0.2f, -3.0f, 0.5f}, {0, 0, 0}, {0, 0, 1}, 0.6f, 8, 8);
   Buffer<float> rays(dev, std::size_t(n_rays) * render::kRayFloats);
   render::image_rays(dev, cam, PointLight{{1, 1, 3}, {100, 100, 100}}, 0, n_rays, rays);
-  render::RendererSettings rs;
+  render::VolumeRendererSettings rs;
   rs.n_samples = nc;
   rs.sh_lmax = -1;
   render::VolumeRenderer coarse(dev, rs);
@@ -409,7 +409,7 @@ TEST(NeRV, IndirectBounceKernelsMatchAHostReferenceAndFiniteDifferences) {
   Buffer<float> rays(dev, std::size_t(in.n_rays) * render::kRayFloats);
   render::image_rays(dev, Camera::look_at({0.3f, -3.5f, 1.0f}, {0, 0, 0}, {0, 0, 1}, 0.5f, 4, 2), sc.light, 0,
                      in.n_rays, rays);
-  render::RendererSettings rs;
+  render::VolumeRendererSettings rs;
   rs.n_samples = in.spr;
   rs.sh_lmax = -1;
   render::VolumeRenderer renderer(dev, rs);

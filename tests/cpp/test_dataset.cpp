@@ -97,7 +97,7 @@ TEST(Dataset, RoundTripGivesIdenticalCamerasLightsAndPixels) {
       ASSERT_EQ(img.channels, 4);
       EXPECT_TRUE(fs::exists(fs::path(out) / (name + "/r_00" + std::to_string(i) + ".png")));
       if (i == 0) {  // stored pixels are exactly the render of that view (float EXR: bit exact)
-        RenderSettings rs;
+        PathTraceSettings rs;
         rs.spp = name == "test" ? s.test_spp : s.spp;
         rs.seed = dataset_view_seed(s.seed, name, i);
         EXPECT_EQ(img.pixels, pt.render(a.camera, {a.light}, rs).image.pixels) << name;

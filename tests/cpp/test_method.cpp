@@ -360,7 +360,7 @@ TEST(Method, EnvironmentLightAddsAConstantToTheLinearPointLightTerm) {
   model.initialize(4);
   Scene1 sc;
   const EnvironmentLight sky = test_sky();
-  method::RenderSettings rs;
+  method::ImageRenderSettings rs;
   rs.environment = &sky;
   std::vector<Image> img;
   for (float k : {1.0f, 2.0f, 3.0f}) {
@@ -405,7 +405,7 @@ TEST(Method, InferenceVisibilityCanMarchTheDensityGrid) {
   model.initialize(2);
   model.refresh_density_grid();
   Scene1 sc;
-  method::RenderSettings net, march;
+  method::ImageRenderSettings net, march;
   march.visibility = "march";
   const Image a = method::render_image(model, sc.camera, sc.light, net);
   const Image b = method::render_image(model, sc.camera, sc.light, march);
@@ -656,7 +656,7 @@ TEST_F(MethodTrainer, EnvPointDatasetsTrainTheEnvironmentPartsAndResume) {
   const auto split = load_split(ds, "test");
   ASSERT_NE(split.environment, nullptr);
   EXPECT_TRUE(split.environment->visible());
-  method::RenderSettings lit, dark;
+  method::ImageRenderSettings lit, dark;
   lit.environment = split.environment.get();
   const Image a = method::render_image(straight.model(), split.cameras[0], split.lights[0], lit);
   const Image b = method::render_image(straight.model(), split.cameras[0], split.lights[0], dark);

@@ -233,7 +233,7 @@ TEST(PathTraceRender, WhiteFurnaceRendersTheEnvironmentRadianceEverywhere) {
             {"environment", {{"radiance", {0.7, 0.7, 0.7}}, {"visible", true}}},
             {"cameras", {{{"position", {0.3, -3.0, 0.4}}, {"camera_angle_x", 0.45}, {"width", 12}, {"height", 12}}}}};
   const Scene scene = Scene::from_json(j);
-  RenderSettings rs;
+  PathTraceSettings rs;
   rs.spp = 64;
   rs.seed = 3;
   const RenderResult r = PathTracer(dev, scene).render(scene.cameras[0], {}, rs);
@@ -265,7 +265,7 @@ TEST(PathTraceRender, SingleScatteringMatchesNumericalIntegration) {
   const Grid& grid = scene.medium->density;
   const Camera& cam = scene.cameras[0];
   const PointLight& light = scene.lights[0];
-  RenderSettings rs;
+  PathTraceSettings rs;
   rs.spp = 1024;
   rs.max_bounces = 1;
   rs.seed = 8;
@@ -326,15 +326,15 @@ TEST(PathTraceRender, SameSeedSameImageWhateverTheTilingOtherSeedsDiffer) {
   j["environment"] = {{"sky", 3}, {"visible", true}};
   j["cameras"] = {{{"position", {0, -4.5, 1}}, {"width", 10}, {"height", 8}}};
   const Scene scene = Scene::from_json(j);
-  RenderSettings rs;
+  PathTraceSettings rs;
   rs.spp = 16;
   rs.seed = 42;
   const PathTracer pt(devices.front(), scene);
   const RenderResult a = pt.render(scene.cameras[0], scene.lights, rs);
-  RenderSettings tiled = rs;
+  PathTraceSettings tiled = rs;
   tiled.samples_per_launch = 37;  // many small launches, passes of 1 sample
   EXPECT_EQ(pt.render(scene.cameras[0], scene.lights, tiled).image.pixels, a.image.pixels);
-  RenderSettings other = rs;
+  PathTraceSettings other = rs;
   other.seed = 43;
   EXPECT_NE(pt.render(scene.cameras[0], scene.lights, other).image.pixels, a.image.pixels);
   // Other devices: the same image within Monte Carlo tolerance (streams are identical; floats may differ).
@@ -352,7 +352,7 @@ TEST(PathTraceRender, ProgressIsReportedAndCancellationStops) {
   j["lights"] = {{{"position", {0, -3, 3}}, {"intensity", 100}}};
   j["cameras"] = {{{"width", 16}, {"height", 16}}};
   const Scene scene = Scene::from_json(j);
-  RenderSettings rs;
+  PathTraceSettings rs;
   rs.spp = 8;
   rs.samples_per_launch = 256;
   std::vector<Progress> seen;
@@ -530,7 +530,7 @@ TEST(PathTraceRender, SolidSphereUnderAPointLightMatchesTheAnalyticShading) {
             {"lights", {{{"position", {2.0, -2.0, 3.0}}, {"intensity", inten}}}},
             {"cameras", {{{"position", {0, -4, 0}}, {"camera_angle_x", 0.18}, {"width", 8}, {"height", 8}}}}};
   const Scene scene = Scene::from_json(j);
-  RenderSettings rs;
+  PathTraceSettings rs;
   rs.spp = 256;
   rs.seed = 2;
   const RenderResult r = PathTracer(dev, scene).render(scene.cameras[0], scene.lights, rs);

@@ -18,8 +18,8 @@ namespace relit {
 
 using nn::BatchMatrix;
 using render::kRayFloats;
-using render::RendererSettings;
 using render::VolumeRenderer;
+using render::VolumeRendererSettings;
 using Vec3 = Eigen::Vector3d;
 
 namespace {
@@ -452,8 +452,8 @@ TEST(VolumeRendererEnvironment, EnvironmentSamplesAreRequiredExactlyWithEnvironm
 
 namespace {
 
-RendererSettings brdf_settings(std::uint32_t n_samples, int lmax, std::uint32_t n_dirs, std::uint32_t n_env = 0) {
-  RendererSettings rs{n_samples, lmax, n_dirs, false, n_env};
+VolumeRendererSettings brdf_settings(std::uint32_t n_samples, int lmax, std::uint32_t n_dirs, std::uint32_t n_env = 0) {
+  VolumeRendererSettings rs{n_samples, lmax, n_dirs, false, n_env};
   rs.scattering = "brdf";
   return rs;
 }
@@ -493,7 +493,7 @@ TEST(VolumeRendererBrdf, PropertyColumnsEndWithTheRawNormal) {
 
 TEST(VolumeRendererBrdf, ClosedFormIndirectAndUnknownScatteringAreErrors) {
   const Device dev = test::test_device();
-  RendererSettings rs = brdf_settings(16, 1, 8);
+  VolumeRendererSettings rs = brdf_settings(16, 1, 8);
   rs.closed_form_indirect = true;
   expect_invalid_argument([&] { VolumeRenderer(dev, rs); }, "closed_form_indirect");
   rs.closed_form_indirect = false;

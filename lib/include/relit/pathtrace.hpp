@@ -1,7 +1,7 @@
 // The reference volumetric path tracer (docs/design.md §5): unbiased ground truth for media and solids.
 //
 //   relit::PathTracer pt(device, scene);                 // uploads grids, majorants, environment tables once
-//   relit::RenderSettings rs; rs.spp = 64; rs.seed = 1;
+//   relit::PathTraceSettings rs; rs.spp = 64; rs.seed = 1;
 //   relit::Image img = pt.render(camera, scene.lights, rs, progress).image;   // RGBA, linear
 //
 // Estimators: delta tracking against a majorant grid, next-event estimation to point lights with ratio
@@ -23,7 +23,8 @@
 
 namespace relit {
 
-struct RenderSettings {
+/// How the reference path tracer renders an image (PathTracer::render, render_reference).
+struct PathTraceSettings {
   std::uint32_t spp = 64;         ///< samples per pixel, >= 1
   std::uint32_t seed = 0;         ///< random seed
   std::uint32_t max_bounces = 0;  ///< scattering events gathered per path; 0 = unlimited (1 = single scattering)
@@ -47,7 +48,7 @@ class PathTracer {
   PathTracer& operator=(PathTracer&&) noexcept;
 
   /// Renders `camera`'s view lit by `lights` (plus the scene's environment, if any).
-  RenderResult render(const Camera& camera, const std::vector<PointLight>& lights, const RenderSettings& settings,
+  RenderResult render(const Camera& camera, const std::vector<PointLight>& lights, const PathTraceSettings& settings,
                       const ProgressCallback& progress = {}) const;
   const Device& device() const;
 
@@ -58,7 +59,7 @@ class PathTracer {
 
 /// One-call form: renders the scene's camera `camera_index` under the scene's own lights.
 Image render_reference(const Device& device, const Scene& scene, std::size_t camera_index,
-                       const RenderSettings& settings, const ProgressCallback& progress = {});
+                       const PathTraceSettings& settings, const ProgressCallback& progress = {});
 
 /// Throughput of the path tracer on the default cloud scene (built-in "cloud", 64^3 grid, one point light at
 /// distance 4, unlimited bounces), measured after a correctness check. For `relit bench` and bench_pathtrace.

@@ -205,7 +205,7 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
     io::write_file_atomic((tmp / "scene.json").string(), scene_json.dump(2) + "\n");
 
     const PathTracer pt(device, scene);
-    RenderSettings rs;
+    PathTraceSettings rs;
     rs.spp = s.spp;
     rs.max_bounces = s.max_bounces;
     std::uint64_t samples_done = 0;

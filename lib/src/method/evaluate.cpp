@@ -20,7 +20,7 @@ std::vector<report::ViewResult> evaluate(const Model& model, const std::string& 
   }
   std::vector<report::ViewResult> views;
   ProgressTracker tracker(progress, total, "views");
-  RenderSettings rs;
+  ImageRenderSettings rs;
   rs.visibility = options.visibility;
   rs.spp = options.spp;
   for (const auto& split : splits)

@@ -381,7 +381,7 @@ const render::VolumeRenderer& MediumModel::renderer_for(std::uint32_t n_samples,
   if (n_env == 0 && n_samples == m_settings.renderer.n_samples) return *m_renderer;
   auto& r = m_renderers[{n_samples, n_env}];
   if (!r) {
-    render::RendererSettings rs = m_settings.renderer;
+    render::VolumeRendererSettings rs = m_settings.renderer;
     rs.n_samples = n_samples;
     rs.n_env_dirs = n_env;
     r = std::make_unique<render::VolumeRenderer>(m_device, rs);

@@ -10,8 +10,8 @@
 
 namespace relit::method {
 
-Image render_image(const Model& model, const Camera& camera, const PointLight& light, const RenderSettings& settings,
-                   const ProgressCallback& progress) {
+Image render_image(const Model& model, const Camera& camera, const PointLight& light,
+                   const ImageRenderSettings& settings, const ProgressCallback& progress) {
   camera.validate();
   light.validate();
   if (settings.tile_rays == 0) throw InvalidArgument("render_image: tile_rays must be positive");

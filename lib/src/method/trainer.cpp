@@ -228,7 +228,7 @@ double Trainer::validate() {
   if (m_val.size() == 0) return m_val_psnr;
   double sum = 0;
   for (std::size_t i = 0; i < m_val.size(); ++i) {
-    RenderSettings rs;
+    ImageRenderSettings rs;
     rs.seed = 7;
     rs.environment = m_val.environment.get();
     const Image img = render_image(*m_model, m_val.cameras[i], m_val.lights[i], rs);

@@ -19,7 +19,7 @@ double furnace_sigma(const Device& dev, int res) {
                   {"environment", {{"radiance", {0.5, 0.5, 0.5}}, {"visible", true}}}};
   const Scene scene = Scene::from_json(j);
   const Camera cam = Camera::look_at({0.3f, -3.0f, 0.4f}, {0, 0, 0}, {0, 0, 1}, 0.45f, res, res);
-  RenderSettings rs;
+  PathTraceSettings rs;
   rs.spp = 32;
   rs.seed = 1;
   const RenderResult r = PathTracer(dev, scene).render(cam, {}, rs);
@@ -47,7 +47,7 @@ PathTraceBenchmark benchmark_pathtracer(const Device& device, int resolution, st
   PointLight light;
   light.position = {2.3f, -2.3f, 2.3f};
   const PathTracer pt(device, scene);
-  RenderSettings rs;
+  PathTraceSettings rs;
   rs.spp = spp;
   auto seconds = [](auto t0) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
   const auto w0 = std::chrono::steady_clock::now();

@@ -9,7 +9,7 @@
 
 namespace relit {
 
-void RenderSettings::validate() const {
+void PathTraceSettings::validate() const {
   if (spp < 1 || spp > (1u << 24)) throw InvalidArgument("spp must lie in [1, 16777216], got " + std::to_string(spp));
   if (rr_depth < 1) throw InvalidArgument("rr_depth must be >= 1");
   if (samples_per_launch < 1) throw InvalidArgument("samples_per_launch must be >= 1");
@@ -100,8 +100,8 @@ PathTracer::PathTracer(PathTracer&&) noexcept = default;
 PathTracer& PathTracer::operator=(PathTracer&&) noexcept = default;
 const Device& PathTracer::device() const { return m_impl->device; }
 
-RenderResult PathTracer::render(const Camera& camera, const std::vector<PointLight>& lights, const RenderSettings& rs,
-                                const ProgressCallback& progress) const {
+RenderResult PathTracer::render(const Camera& camera, const std::vector<PointLight>& lights,
+                                const PathTraceSettings& rs, const ProgressCallback& progress) const {
   const Impl& m = *m_impl;
   rs.validate();
   camera.validate();
@@ -169,7 +169,7 @@ RenderResult PathTracer::render(const Camera& camera, const std::vector<PointLig
 }
 
 Image render_reference(const Device& device, const Scene& scene, std::size_t camera_index,
-                       const RenderSettings& settings, const ProgressCallback& progress) {
+                       const PathTraceSettings& settings, const ProgressCallback& progress) {
   if (camera_index >= scene.cameras.size())
     throw InvalidArgument("the scene has " + std::to_string(scene.cameras.size()) + " camera(s); index " +
                           std::to_string(camera_index) + " does not exist (add \"cameras\" to the scene JSON)");

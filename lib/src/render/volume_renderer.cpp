@@ -13,14 +13,14 @@ const Buffer<float>& env_dirs(const EnvironmentSamples* env) { return env ? env-
 const Buffer<float>& env_weights(const EnvironmentSamples* env) { return env ? env->weights().data() : kNoBuffer; }
 }  // namespace
 
-VolumeRenderer::VolumeRenderer(const Device& device, const RendererSettings& settings)
+VolumeRenderer::VolumeRenderer(const Device& device, const VolumeRendererSettings& settings)
     : m_device(device), m_settings(settings), m_brdf(settings.scattering == "brdf") {
   if (settings.scattering != "phase" && settings.scattering != "brdf")
-    throw InvalidArgument("RendererSettings::scattering must be \"phase\" (media) or \"brdf\" (solids), got \"" +
+    throw InvalidArgument("VolumeRendererSettings::scattering must be \"phase\" (media) or \"brdf\" (solids), got \"" +
                           settings.scattering + "\"");
   if (m_brdf && settings.closed_form_indirect)
     throw InvalidArgument(
-        "RendererSettings: closed_form_indirect has no closed form with scattering \"brdf\" (the "
+        "VolumeRendererSettings: closed_form_indirect has no closed form with scattering \"brdf\" (the "
         "Funk-Hecke identity it uses holds for the HG phase function only); set "
         "closed_form_indirect = false to use the K-direction sum");
   if (settings.n_samples == 0 || settings.n_samples % nn::kBatchTile != 0 || settings.n_samples > 4096)
@@ -82,7 +82,7 @@ void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, c
   if (n_env == 0 && env)
     throw InvalidArgument(std::string("VolumeRenderer::") + what +
                           ": environment samples given to a renderer "
-                          "without environment light; set RendererSettings::n_env_dirs to their count (" +
+                          "without environment light; set VolumeRendererSettings::n_env_dirs to their count (" +
                           std::to_string(env->size()) + ")");
   if (env && env->size() != n_env)
     throw InvalidArgument(std::string("VolumeRenderer::") + what + ": the environment samples hold " +

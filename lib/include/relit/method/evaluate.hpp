@@ -21,7 +21,7 @@ struct EvalOptions {
   std::size_t max_views = 0;                ///< per split; 0 = all
   bool write_images = true;                 ///< each prediction as PNG + EXR
   std::string visibility;                   ///< "" (the model's setting), "network" or "march"
-  std::uint32_t spp = 1;                    ///< rays per pixel (RenderSettings::spp)
+  std::uint32_t spp = 1;                    ///< rays per pixel (ImageRenderSettings::spp)
 };
 
 /// Renders every view of the splits with `model`, compares with the dataset's images, and writes the report

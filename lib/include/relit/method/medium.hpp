@@ -82,7 +82,7 @@ struct MethodParts {
 
 /// Resolved settings of the model (the non-network keys of the "model" config object).
 struct MediumSettings {
-  render::RendererSettings renderer;
+  render::VolumeRendererSettings renderer;
   std::uint32_t n_features = 11;           ///< feature columns the property net passes to the SH head
   float intensity_reference = 1000.0f;     ///< I_ref: the SH head predicts indirect light per I / I_ref
   float light_position_scale = 0.125f;     ///< the SH head sees the light position times this

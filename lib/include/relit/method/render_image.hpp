@@ -2,7 +2,7 @@
 // trained on 'env+point' data), in linear RGB (docs/method.md, "Relighting").
 //
 //   auto model = relit::method::load_model(device, "runs/cloud/checkpoint.relit");
-//   relit::method::RenderSettings settings;
+//   relit::method::ImageRenderSettings settings;
 //   settings.spp = 4;                                                    // 2 x 2 rays per pixel, averaged
 //   relit::PointLight light{{3, -3, 2}, {800, 800, 800}};                // W/sr
 //   relit::Image img = relit::method::render_image(*model, camera, light, settings);
@@ -19,7 +19,8 @@
 
 namespace relit::method {
 
-struct RenderSettings {
+/// How render_image renders a model's image: tiles, rays per pixel, visibility, environment.
+struct ImageRenderSettings {
   std::uint32_t tile_rays = 1024;  ///< rays per pass (small tiles stay in cache)
   std::uint32_t seed = 0;          ///< draws the indirect directions
   /// Rays per pixel, averaged: an n x n grid in each pixel (a box filter, as the path tracer's references;
@@ -35,6 +36,6 @@ struct RenderSettings {
 /// Renders `camera`'s image under `light` with the model: linear RGB (3 channels), in tiles, with progress
 /// counted in rays (pixels x spp).
 Image render_image(const Model& model, const Camera& camera, const PointLight& light,
-                   const RenderSettings& settings = {}, const ProgressCallback& progress = {});
+                   const ImageRenderSettings& settings = {}, const ProgressCallback& progress = {});
 
 }  // namespace relit::method

@@ -44,7 +44,8 @@ constexpr std::uint32_t normal_column(std::uint32_t n_sh, std::uint32_t n_env_di
   return env_visibility_column(n_sh) + n_env_dirs;
 }
 
-struct RendererSettings {
+/// What a VolumeRenderer is built for: samples per ray, SH bands, indirect directions, scattering model, N_e.
+struct VolumeRendererSettings {
   std::uint32_t n_samples = 64;  ///< samples per ray, a multiple of 16
   int sh_lmax = 5;               ///< SH bands 0..sh_lmax for indirect light; -1: no indirect light
   std::uint32_t n_dirs = 64;     ///< K, uniform directions of the indirect-light sum
@@ -66,9 +67,9 @@ struct RendererSettings {
 
 class VolumeRenderer {
  public:
-  VolumeRenderer(const Device& device, const RendererSettings& settings);
+  VolumeRenderer(const Device& device, const VolumeRendererSettings& settings);
 
-  const RendererSettings& settings() const { return m_settings; }
+  const VolumeRendererSettings& settings() const { return m_settings; }
   /// (sh_lmax + 1)^2, or 0 without indirect light.
   std::uint32_t n_sh() const { return m_n_sh; }
   /// Whether samples scatter with the BRDF (scattering "brdf") rather than the phase function.
@@ -116,7 +117,7 @@ class VolumeRenderer {
   void check(std::uint32_t n_rays, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
              const nn::BatchMatrix& sh_basis, const EnvironmentSamples* env, const char* what) const;
   Device m_device;
-  RendererSettings m_settings;
+  VolumeRendererSettings m_settings;
   std::uint32_t m_n_sh;
   bool m_brdf;
   Defines m_defines;

@@ -1,4 +1,4 @@
-// Double-precision host reference of the BRDF of kernels/brdf.clh (DESIGN §4.4 with an energy-conserving
+// Double-precision host reference of the BRDF of kernels/brdf.clh (docs/design.md §4.4 with an energy-conserving
 // diffuse term), written from the formulas and independent of the kernel code, except for the tabulated
 // specular albedo, whose float values both sides read from kernels/brdf_albedo.clh. Also the quadrature that
 // generates that table (scripts/brdf_albedo_table.cpp) and that the tests check it against.

@@ -1,6 +1,6 @@
-// Double-precision host reference of the neural volume renderer's forward pass (DESIGN §4.2: stratum-centre
+// Double-precision host reference of the neural volume renderer's forward pass (docs/design.md §4.2: stratum-centre
 // samples, HG phase, point light, environment directions, the K-direction indirect sum with its clamp or the
-// closed form, alpha compositing, background; and the "brdf" scattering of DESIGN §4.4 with the BRDF of
+// closed form, alpha compositing, background; and the "brdf" scattering of docs/design.md §4.4 with the BRDF of
 // brdf_reference.hpp), with random scenes to run it on. Shared by the renderer's tests and by `relit bench`'s
 // verification step.
 #pragma once
