@@ -4,6 +4,7 @@
 #include <relit/cl/buffer.hpp>
 #include <relit/config.hpp>
 #include <relit/error.hpp>
+#include <relit/method/medium.hpp>
 
 #include <algorithm>
 #include <cstdint>
@@ -36,6 +37,26 @@ inline std::uint32_t rays_in_share(std::uint32_t n_rays, float fraction) {
 /// Grows `b` to at least `count` floats (scratch reused across passes).
 inline void ensure_size(Buffer<float>& b, const Device& device, std::size_t count) {
   if (b.size() < count) b = Buffer<float>(device, count);
+}
+
+// The visibility net's defaults: its position and direction encodings and its MLP (NeRV's V-and-depth net
+// starts from the same encodings).
+inline Json default_visibility() {
+  return {{"position_encoding",
+           {{"type", "HashGrid"},
+            {"n_levels", 8},
+            {"n_features_per_level", 2},
+            {"log2_hashmap_size", 15},
+            {"base_resolution", 8},
+            {"per_level_scale", 1.5}}},
+          {"direction_encoding", {{"type", "SphericalHarmonics"}, {"degree", 4}}},
+          {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}}};
+}
+
+// Columns of the SH head's input: the features, the light position, V toward the light, exp(-k τ) toward it.
+inline std::uint32_t indirect_input_cols(const MediumSettings& s) {
+  return s.n_features + (s.light_conditioned ? 3 : 0) + (s.indirect_visibility_input ? 1 : 0) +
+         (s.indirect_optical_depth > 0.0f ? 1 : 0);
 }
 
 }  // namespace relit::method::detail

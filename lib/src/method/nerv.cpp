@@ -106,17 +106,12 @@ class TwoStageNetwork final : public nn::Network {
   std::uint32_t m_pos, m_dir;
 };
 
-Json default_visibility() {
-  return {{"position_encoding",
-           {{"type", "HashGrid"},
-            {"n_levels", 8},
-            {"n_features_per_level", 2},
-            {"log2_hashmap_size", 15},
-            {"base_resolution", 8},
-            {"per_level_scale", 1.5}}},
-          {"direction_encoding", {{"type", "SphericalHarmonics"}, {"degree", 4}}},
-          {"trunk", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 2}}},
-          {"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 1}}}};
+// The V-and-depth net: the shared visibility encodings, its trunk the shared visibility MLP, a smaller head.
+Json nerv_visibility_defaults() {
+  Json v = detail::default_visibility();
+  v["trunk"] = v["network"];
+  v["network"] = {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 1}};
+  return v;
 }
 
 NeRVPass& nerv_pass(ModelPass& pass) {
@@ -153,7 +148,7 @@ void NeRV::configure_method(config::Reader& r, config::Docs* docs) {
 
 void NeRV::configure_visibility(config::Reader& r, config::Docs* docs) {
   const std::string ptr = r.pointer("visibility");
-  const Json defaults = default_visibility();
+  const Json defaults = nerv_visibility_defaults();
   config::Reader v(
       r.sub("visibility", defaults, "object",
             "visibility net V_ψ: {position_encoding, trunk, n_trunk_outputs, direction_encoding, network}"),
