@@ -6,6 +6,7 @@
 #include <relit/cl/device.hpp>
 #include <relit/error.hpp>
 #include <relit/io/file.hpp>
+#include <relit/method/model.hpp>
 #include <relit/method/presets.hpp>
 #include <relit/method/trainer.hpp>
 
@@ -98,8 +99,9 @@ void add_train_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("train", "train the relightable model on a dataset (writes a run folder)");
   cmd->add_option("dataset", o->dataset, "dataset folder (relit generate writes one)")->required();
   cmd->add_option("--config,-c", o->config, "preset (fast, paper) or a run config .json")->capture_default_str();
-  cmd->add_option("--method,-m", o->method,
-                  "ours, bi (Bi et al.) or nerv (NeRV); with a preset name, that method's preset (bi-fast, ...)");
+  std::string methods;
+  for (const auto& m : method::method_names()) methods += (methods.empty() ? "" : ", ") + m;
+  cmd->add_option("--method,-m", o->method, methods + "; with a preset name, that method's preset (bi-fast, ...)");
   cmd->add_option("--minutes", o->minutes, "stop after this much training time (a checkpoint is written)");
   cmd->add_option("--out,-o", o->out, "run folder: config.json, log.jsonl, checkpoint.relit")->required();
   cmd->add_option("--steps", o->steps, "train until this step (default: the config's training.steps)")

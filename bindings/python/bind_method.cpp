@@ -132,7 +132,7 @@ void bind_method(py::module_& m) {
       });
 
   py::class_<method::Model>(m, "Model",
-                            "A trained relightable model (any method: ours, bi, nerv): renders any camera under any "
+                            "A trained relightable model (any method of relit.methods()): renders any camera under any "
                             "point light.")
       .def_static(
           "load",

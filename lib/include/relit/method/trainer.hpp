@@ -8,7 +8,7 @@
 //   trainer.run(3000, [](const TrainStats& s) { ...; return true; });  // every log_every steps
 //   relit::Image img = relit::method::render_image(trainer.model(), camera, light);
 //
-// A run config is {"method": "ours" | "bi" | "nerv", "model": {...}, "training": {...}}; docs/method.md describes it
+// A run config is {"method": one of method_names(), "model": {...}, "training": {...}}; docs/method.md describes it
 // and docs/config.md lists every key. A step enqueues its work only (no host synchronisation) except at the periodic
 // loss readback (log_every), validation and checkpoints.
 #pragma once
