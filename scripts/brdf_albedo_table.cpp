@@ -1,7 +1,8 @@
 // Writes kernels/brdf_albedo.clh: the specular albedo E(mu; r) of the GGX lobe of kernels/brdf.clh on a
 // 32 x 32 grid, and its cosine-weighted average E_avg(r), which the energy-conserving diffuse term needs
 // (docs/method.md, "The BRDF"). The quadrature is the host reference's
-// (lib/verify/include/relit/verify/brdf_reference.hpp), which the tests also check the table against. Regenerate after changing the specular lobe:
+// (lib/verify/include/relit/verify/brdf_reference.hpp), which the tests also check the table against. Regenerate after
+// changing the specular lobe:
 //
 //   g++ -O2 -std=c++17 -o build/brdf_albedo_table scripts/brdf_albedo_table.cpp
 //   build/brdf_albedo_table > kernels/brdf_albedo.clh
