@@ -59,4 +59,30 @@ inline std::uint32_t indirect_input_cols(const MediumSettings& s) {
          (s.indirect_optical_depth > 0.0f ? 1 : 0);
 }
 
+// Reads an object-valued key of `r` with its own Reader over the given sub-keys (each a component JSON,
+// defaulting to the entry of `defaults`).
+struct SubConfig {
+  config::Reader reader;
+  config::Docs* docs;
+  std::string key;
+  SubConfig(config::Reader& parent, const std::string& key_, const Json& defaults, const std::string& description,
+            config::Docs* docs_out)
+      : reader(parent.sub(key_, defaults, "object", description), parent.pointer(key_), key_),
+        docs(docs_out),
+        key(key_) {}
+  Json component(const std::string& key, const Json& defaults, const std::string& description) {
+    return reader.sub(key, defaults.at(key), "component", description);
+  }
+  /// Rejects unknown keys and records the object's keys for the config reference.
+  void finish() {
+    reader.finish();
+    if (docs) docs->emplace_back(reader.pointer(), reader.docs());
+  }
+  /// finish(), and the object's resolved keys become `parent`'s value of the key.
+  void finish_into(config::Reader& parent) {
+    finish();
+    parent.set_resolved(key, reader.resolved());
+  }
+};
+
 }  // namespace relit::method::detail

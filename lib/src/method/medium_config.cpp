@@ -16,6 +16,7 @@ namespace {
 using detail::default_visibility;
 using detail::indirect_input_cols;
 using detail::strip_heads;
+using detail::SubConfig;
 using detail::with_heads;
 
 Json default_property() {
@@ -35,24 +36,6 @@ Json default_indirect() {
 Json default_environment() {
   return {{"network", {{"type", "FullyFusedMLP"}, {"n_neurons", 64}, {"n_hidden_layers", 1}}}};
 }
-
-// Reads an object-valued key of `r` with its own Reader over the given sub-keys (each a component JSON,
-// defaulting to the entry of `defaults`).
-struct SubConfig {
-  config::Reader reader;
-  config::Docs* docs;
-  SubConfig(config::Reader& parent, const std::string& key, const Json& defaults, const std::string& description,
-            config::Docs* docs_out)
-      : reader(parent.sub(key, defaults, "object", description), parent.pointer(key), key), docs(docs_out) {}
-  Json component(const std::string& key, const Json& defaults, const std::string& description) {
-    return reader.sub(key, defaults.at(key), "component", description);
-  }
-  /// Rejects unknown keys and records the object's keys for the config reference.
-  void finish() {
-    reader.finish();
-    if (docs) docs->emplace_back(reader.pointer(), reader.docs());
-  }
-};
 
 std::uint32_t sh_count(int sh_lmax) { return sh_lmax < 0 ? 0 : std::uint32_t((sh_lmax + 1) * (sh_lmax + 1)); }
 
@@ -102,8 +85,8 @@ void MediumModel::configure(const Json& config, const std::string& pointer, conf
 // directions.
 void MediumModel::configure_renderer(config::Reader& r, config::Docs* docs) {
   auto& s = m_settings.renderer;
-  config::Reader rr(r.sub("renderer", Json::object(), "object", "the volume renderer (docs/design.md §4.2)"),
-                    r.pointer("renderer"), "renderer");
+  SubConfig sub(r, "renderer", Json::object(), "the volume renderer (docs/design.md §4.2)", docs);
+  config::Reader& rr = sub.reader;
   s.n_samples = rr.uint("n_samples", 64, 16, 1024,
                         m_parts.hierarchical ? "stratified samples per ray of the coarse network (a multiple of 16)"
                                              : "samples per ray (a multiple of 16)");
@@ -126,9 +109,7 @@ void MediumModel::configure_renderer(config::Reader& r, config::Docs* docs) {
     s.closed_form_indirect = rr.boolean("closed_form_indirect", false,
                                         "closed-form indirect light sum_lm g^l c_lm Y_lm(-w_o) instead of the "
                                         "K-direction sum (no max(0, .) clamp)");
-  rr.finish();
-  if (docs) docs->emplace_back(rr.pointer(), rr.docs());
-  r.set_resolved("renderer", rr.resolved());
+  sub.finish_into(r);
 }
 
 // The SH head's keys of the "model" object itself.
@@ -151,16 +132,14 @@ void MediumModel::configure_indirect_keys(config::Reader& r) {
 // "density_grid": the cached density of the visibility targets.
 void MediumModel::configure_density_grid(config::Reader& r, config::Docs* docs) {
   auto& s = m_settings;
-  config::Reader gr(r.sub("density_grid", Json::object(), "object", "the cached density grid of visibility targets"),
-                    r.pointer("density_grid"), "density_grid");
+  SubConfig sub(r, "density_grid", Json::object(), "the cached density grid of visibility targets", docs);
+  config::Reader& gr = sub.reader;
   s.grid_resolution = gr.uint("resolution", 64, 4, 512, "voxels per axis");
   s.grid_refresh = gr.uint("refresh_every", 16, 1, 1u << 20, "training steps between refreshes from the property net");
   s.march_steps = gr.uint("march_steps", 64, 1, 4096, "midpoint steps of each visibility-target march");
   s.visibility_fraction = gr.number("visibility_fraction", 0.25f, 1e-3f, 1.0f,
                                     "share of each batch's rays whose samples train the visibility net");
-  gr.finish();
-  if (docs) docs->emplace_back(gr.pointer(), gr.docs());
-  r.set_resolved("density_grid", gr.resolved());
+  sub.finish_into(r);
 }
 
 void MediumModel::configure_visibility_modes(config::Reader& r) {
@@ -194,8 +173,7 @@ Json MediumModel::configure_environment(config::Reader& r, config::Docs* docs) {
   Json network;
   if (env_head)
     network = sub.component("network", default_environment(), "the c_env head's MLP on the features (output: none)");
-  sub.finish();
-  r.set_resolved("environment", sub.reader.resolved());
+  sub.finish_into(r);
   return network;
 }
 

@@ -133,17 +133,15 @@ void NeRV::describe(config::Docs& docs) { NeRV().describe_keys(docs); }
 RELIT_REGISTER_METHODS(nerv) { registry.add<NeRV>("nerv", 40, "NeRV: docs/design.md §4.5"); }
 
 void NeRV::configure_method(config::Reader& r, config::Docs* docs) {
-  config::Reader b(r.sub("bounce", Json::object(), "object", "the one indirect bounce per camera ray"),
-                   r.pointer("bounce"), "bounce");
+  detail::SubConfig sub(r, "bounce", Json::object(), "the one indirect bounce per camera ray", docs);
+  config::Reader& b = sub.reader;
   m_nerv.n_dirs = b.uint("n_dirs", 128, 1, 4096,
                          "K of a training step: uniform bounce directions from the expected termination point");
   m_nerv.n_dirs_render = b.uint("n_dirs_render", 128, 1, 4096, "K when rendering images (128 in Zheng et al. 2021)");
   m_nerv.n_dirs_env = b.uint("n_dirs_env", 32, 1, 4096, "K when the scene is also lit by an environment map");
   m_nerv.visibility_fraction = b.number("visibility_fraction", 0.25f, 1e-3f, 1.0f,
                                         "share of each batch's rays whose bounce queries train the visibility net");
-  b.finish();
-  if (docs) docs->emplace_back(b.pointer(), b.docs());
-  r.set_resolved("bounce", b.resolved());
+  sub.finish_into(r);
 }
 
 void NeRV::configure_visibility(config::Reader& r, config::Docs* docs) {
