@@ -13,6 +13,7 @@
 // tables used in turn as the levels are, and in one 64 MiB table), and reports beside the hash grid's
 // measured rate the bound those rates put on it: "hash_grid_roofline" (distinct cache lines per sample and
 // level / rate).
+#include <relit/io/file.hpp>
 #include <relit/nn/encodings.hpp>
 #include <relit/nn/registry.hpp>
 #include <relit/relit.hpp>
@@ -456,7 +457,7 @@ int main(int argc, char** argv) {
     if (a.out.empty())
       std::cout << text << "\n";
     else
-      std::ofstream(a.out) << text << "\n";
+      relit::io::write_file_atomic(a.out, text + "\n");
     return ok ? 0 : 1;
   } catch (const std::exception& e) {
     std::cerr << "bench_encodings: " << e.what() << "\n";

@@ -7,6 +7,7 @@
 //
 // FLOPs: 2 per multiply-add; forward = 2 * sum(in * out) per sample; training step = 3 x forward
 // (forward + dL/dinput + dL/dweights). Timings are medians over --reps runs, each ended by clFinish.
+#include <relit/io/file.hpp>
 #include <relit/verify/mlp_reference.hpp>
 #include <relit/verify/peak_reference.hpp>
 
@@ -619,7 +620,7 @@ int main(int argc, char** argv) {
         }
       j["nets"].push_back(jn);
     }
-    if (!o.json.empty()) std::ofstream(o.json) << j.dump(2) << "\n";
+    if (!o.json.empty()) relit::io::write_file_atomic(o.json, j.dump(2) + "\n");
     if (g_failures) {
       std::fprintf(stderr, "bench_mlp: %d verification(s) failed\n", g_failures);
       return 1;

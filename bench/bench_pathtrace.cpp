@@ -5,6 +5,7 @@
 //
 //   bench_pathtrace [--smoke] [--device SEL] [--resolution R] [--spp N] [--reps N] [--out FILE]
 // --smoke: tiny sizes, verification only (exit 1 on a wrong result), as run by the test suite.
+#include <relit/io/file.hpp>
 #include <relit/pathtrace.hpp>
 #include <relit/relit.hpp>
 
@@ -71,7 +72,7 @@ int main(int argc, char** argv) try {
     if (a.out.empty())
       std::cout << doc.dump(2) << "\n";
     else
-      std::ofstream(a.out) << doc.dump(2) << "\n";
+      relit::io::write_file_atomic(a.out, doc.dump(2) + "\n");
     std::cerr << "pathtrace: " << samples / median / 1e6 << " M samples/s (median of " << a.reps << ", " << a.resolution
               << "^2 x " << a.spp << " spp)\n";
     return 0;

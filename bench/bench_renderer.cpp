@@ -10,6 +10,7 @@
 // directions, N_e = 0 and 32 environment directions; also the draw of the environment directions and the
 // march of their visibility targets (64 steps through a 64^3 grid) for a quarter of the batch, the share the
 // visibility network trains on. --smoke: tiny sizes, verification only (exit 1 on a wrong result).
+#include <relit/io/file.hpp>
 #include <relit/relit.hpp>
 #include <relit/render/environment.hpp>
 #include <relit/render/visibility.hpp>
@@ -255,7 +256,7 @@ int main(int argc, char** argv) {
     if (a.out.empty())
       std::cout << text << "\n";
     else
-      std::ofstream(a.out) << text << "\n";
+      relit::io::write_file_atomic(a.out, text + "\n");
     return ok ? 0 : 1;
   } catch (const std::exception& e) {
     std::cerr << "bench_renderer: " << e.what() << "\n";

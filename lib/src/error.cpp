@@ -17,7 +17,7 @@ const char* short_path(const char* file) {
 }  // namespace
 
 ConfigError::ConfigError(const std::string& pointer, const std::string& message)
-    : InvalidArgument(pointer.empty() ? message : pointer + ": " + message), m_pointer(pointer) {}
+    : InvalidArgument(pointer.empty() ? message : pointer + ": " + message), m_pointer(pointer), m_message(message) {}
 
 ClError::ClError(int code, const std::string& call, const char* file, int line)
     : DeviceError([&] {

@@ -69,11 +69,18 @@ TEST(Checkpoint, FailedWriteLeavesTheOldFileIntact) {
   test::TempDir dir("ckpt-keep");
   const auto path = (dir.path() / "a.relit").string();
   io::save_checkpoint(path, sample());
-  const std::string before = io::read_file(path);
-  // Writing into a folder that does not exist fails without touching anything.
-  EXPECT_THROW(io::save_checkpoint((dir.path() / "no" / "such" / "dir.relit").string(), sample()), IOError);
-  EXPECT_EQ(io::read_file(path), before);
-  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 1);
+  const auto before = test::snapshot(dir.path());
+  io::Checkpoint other = sample();
+  other.header["step"] = 99;
+  // The same file fails to be replaced after its temporary exists (a full disk, a failed rename): the old
+  // bytes stay and no temporary is left.
+  for (auto stage : {io::testing::Stage::write, io::testing::Stage::rename}) {
+    test::FailWrites fail(stage);
+    EXPECT_THROW(io::save_checkpoint(path, other), IOError);
+    EXPECT_EQ(test::snapshot(dir.path()), before);
+  }
+  io::save_checkpoint(path, other);  // and without a failure it is replaced
+  EXPECT_EQ(io::load_checkpoint(path).header["step"], 99);
 }
 
 }  // namespace relit

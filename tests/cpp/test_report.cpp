@@ -87,8 +87,12 @@ TEST(Report, SummaryLinesEndWithTheParsableMeans) {
   EXPECT_EQ(report::format_summary_lines(views),
             "test: PSNR 25.25 dB  SSIM 0.8000 (2 views)\n"
             "test_light: PSNR 25.00 dB  SSIM 0.8123 (1 view)\n"
-            "PSNR 25.1667\n"
-            "SSIM 0.8041\n");
+            "PSNR 25.1667  (mean over all 3 views of 2 splits)\n"
+            "SSIM 0.8041  (mean over all 3 views of 2 splits)\n");
+  EXPECT_EQ(report::format_summary_lines({views[0], views[1]}),
+            "test: PSNR 25.25 dB  SSIM 0.8000 (2 views)\n"
+            "PSNR 25.2500  (mean over the 2 test views)\n"
+            "SSIM 0.8000  (mean over the 2 test views)\n");
   EXPECT_THROW(report::format_summary_lines({}), InvalidArgument);
 }
 
@@ -392,7 +396,7 @@ TEST(Report, MetricsFromTheDeviceAndAPerfectView) {
   EXPECT_TRUE(both["views"][0]["psnr"].is_null());
   EXPECT_TRUE(both["mean"]["psnr"].is_null());
   EXPECT_NEAR(both["views"][0]["ssim"].get<double>(), 1.0, 1e-6);
-  EXPECT_TRUE(contains(report::format_summary_lines(views), "\nPSNR inf\n"));
+  EXPECT_TRUE(contains(report::format_summary_lines(views), "\nPSNR inf  (mean over"));
 }
 
 TEST(Report, BadInputWritesNothing) {
@@ -448,6 +452,22 @@ TEST(Report, AFailedWriteLeavesTheOldMetricsIntact) {
     EXPECT_TRUE(contains(e.what(), "taken")) << e.what();
   }
   EXPECT_EQ(io::read_file(file.string()), "data");
+}
+
+// A report write that fails (full disk, failed rename) keeps the old metrics.json and leaves no temporary.
+TEST(Report, AFailedAtomicWriteKeepsTheOldReport) {
+  test::TempDir dir("report-fail");
+  const std::vector<ViewResult> views = {view("test", "a", 30, 0.9), view("test", "b", 20, 0.7)};
+  report::write_report(dir.path().string(), views);
+  const std::string before = io::read_file((dir.path() / "metrics.json").string());
+  const std::vector<ViewResult> other = {view("test", "a", 10, 0.1)};
+  for (auto stage : {io::testing::Stage::write, io::testing::Stage::rename}) {
+    test::FailWrites fail(stage, "metrics.json");
+    EXPECT_THROW(report::write_report(dir.path().string(), other), IOError);
+    EXPECT_EQ(io::read_file((dir.path() / "metrics.json").string()), before);
+    for (const auto& e : fs::recursive_directory_iterator(dir.path()))
+      EXPECT_EQ(io::temporary_owner(e.path().filename().string()), 0) << "left behind: " << e.path();
+  }
 }
 
 }  // namespace

@@ -5,8 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <relit/io/file.hpp>
+
 #include <cstdlib>
 #include <filesystem>
+#include <map>
+#include <stdexcept>
 #include <optional>
 #include <string>
 #include <vector>
@@ -98,6 +102,31 @@ class TempDir {
     return c;
   }
   std::filesystem::path m_path;
+};
+
+/// Every file under `dir` (recursively, hidden ones included) with its bytes: compare before and after an
+/// operation to show that nothing was damaged, added or left behind.
+inline std::map<std::string, std::string> snapshot(const std::filesystem::path& dir) {
+  std::map<std::string, std::string> out;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(dir)) {
+    const std::string rel = std::filesystem::relative(e.path(), dir).string();
+    out[rel] = e.is_regular_file() ? io::read_file(e.path().string()) : std::string("<dir>");
+  }
+  return out;
+}
+
+/// Failure injection for the atomic writers while the object lives: every write whose target path
+/// contains `target` fails at `stage` (after its temporary file exists) as a full disk or failed rename would.
+class FailWrites {
+ public:
+  FailWrites(io::testing::Stage stage, std::string target = "") {
+    io::testing::set_failure_hook([stage, target](io::testing::Stage s, const std::string& path) {
+      if (s == stage && path.find(target) != std::string::npos) throw std::runtime_error("injected failure");
+    });
+  }
+  ~FailWrites() { io::testing::set_failure_hook({}); }
+  FailWrites(const FailWrites&) = delete;
+  FailWrites& operator=(const FailWrites&) = delete;
 };
 
 }  // namespace relit::test

@@ -61,7 +61,8 @@ def test_objects_with_given_metrics_and_predictions_on_disk(tmp_path):
              SimpleNamespace(split="test", name="b", prediction=pred.astype(np.float64), reference=ref,
                              metrics={"psnr": 20.0, "ssim": 0.7, "mse": 1e-2})]
     lines = relit.write_report(str(tmp_path), views, write_predictions=True, write_exr=True)
-    assert lines == "test: PSNR 25.00 dB  SSIM 0.8000 (2 views)\nPSNR 25.0000\nSSIM 0.8000\n"
+    assert lines == ("test: PSNR 25.00 dB  SSIM 0.8000 (2 views)\nPSNR 25.0000  (mean over the 2 test views)\n"
+                     "SSIM 0.8000  (mean over the 2 test views)\n")
     report = json.loads((tmp_path / "metrics.json").read_text())
     assert report["mean"]["mse"] == pytest.approx(5.5e-3)
     png = np.asarray(Image.open(tmp_path / "test" / "a.png").convert("RGB"), np.float64) / 255

@@ -25,6 +25,12 @@ namespace relit {
 
 using Json = nlohmann::json;
 
+/// Parses JSON `text` read from `source` (a file name, or a description such as "the --config argument").
+/// Stricter than the JSON library: an object with the same key twice is refused, since which of the two is
+/// meant cannot be known. Throws ConfigError naming `source`, the position and the cause for invalid JSON, a
+/// number outside the double range (1e999) and duplicate keys.
+Json parse_json(const std::string& text, const std::string& source);
+
 namespace config {
 
 /// One parameter as a component reads it: the source of the generated config reference.

@@ -29,9 +29,11 @@ class ConfigError : public InvalidArgument {
   /// `pointer` is the JSON pointer of the offending value ("/network/n_neurons"), "" for the document.
   ConfigError(const std::string& pointer, const std::string& message);
   const std::string& pointer() const { return m_pointer; }
+  /// The message without the pointer in front (what() is "pointer: message").
+  const std::string& message() const { return m_message; }
 
  private:
-  std::string m_pointer;
+  std::string m_pointer, m_message;
 };
 
 class IOError : public Error {

@@ -4,6 +4,7 @@
 
 #include <relit/cl/program.hpp>
 #include <relit/error.hpp>
+#include <relit/io/file.hpp>
 #include <relit/log.hpp>
 
 #include <chrono>
@@ -36,7 +37,11 @@ std::string save_failed_source(const std::string& file, std::uint64_t hash, cons
   char name[32];
   std::snprintf(name, sizeof name, "%016llx", static_cast<unsigned long long>(hash));
   const auto path = dir / (std::filesystem::path(file).stem().string() + "-" + name + ".cl");
-  std::ofstream(path, std::ios::binary) << source;
+  try {
+    io::write_file_atomic(path.string(), source);
+  } catch (const Error&) {
+    return "(could not be saved: " + path.string() + " is not writable)";
+  }
   return path.string();
 }
 

@@ -3,7 +3,48 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 #include <sstream>
+
+namespace relit {
+
+Json parse_json(const std::string& text, const std::string& source) {
+  // The parser's callback sees every key with its depth: one key set per open object finds duplicates, and
+  // the last key at each depth gives the object's place for the message.
+  std::vector<std::set<std::string>> keys;
+  std::vector<std::string> path;
+  std::string duplicate;
+  auto check = [&](int depth, Json::parse_event_t event, Json& value) {
+    const auto d = static_cast<std::size_t>(depth);
+    if (event == Json::parse_event_t::object_start) {
+      if (keys.size() < d + 2) keys.resize(d + 2), path.resize(d + 2);
+      keys[d + 1].clear();
+    } else if (event == Json::parse_event_t::key && duplicate.empty() && d < keys.size()) {
+      const std::string key = value.get<std::string>();
+      path[d] = key;
+      if (!keys[d].insert(key).second) {
+        std::string where;
+        for (std::size_t i = 1; i < d; ++i) where += "/" + path[i];
+        duplicate = "key \"" + key + "\" appears twice in the object at '" + (where.empty() ? "/" : where) + "'";
+      }
+    }
+    return true;
+  };
+  Json j;
+  try {
+    j = Json::parse(text, check);
+  } catch (const Json::parse_error& e) {
+    throw ConfigError("", source + " is not valid JSON: " + e.what());
+  } catch (const Json::out_of_range& e) {
+    throw ConfigError("", source + " holds a number outside the range of a double: " + e.what());
+  } catch (const Json::exception& e) {
+    throw ConfigError("", source + " cannot be read as JSON: " + e.what());
+  }
+  if (!duplicate.empty()) throw ConfigError("", source + ": " + duplicate + "; keep one");
+  return j;
+}
+
+}  // namespace relit
 
 namespace relit::config {
 
@@ -195,6 +236,10 @@ void Reader::finish() const {
 }
 
 std::string component_type(const Json& json, const std::string& pointer, const std::string& def) {
+  const auto type = json.find("type"), otype = json.find("otype");
+  if (type != json.end() && otype != json.end() && *type != *otype)
+    throw ConfigError(pointer, "\"type\" (" + type->dump() + ") and its alias \"otype\" (" + otype->dump() +
+                                   ") disagree; give one of them");
   for (const char* key : {"type", "otype"}) {
     auto it = json.find(key);
     if (it == json.end()) continue;

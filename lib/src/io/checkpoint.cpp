@@ -1,4 +1,5 @@
 // Checkpoint files: layout in relit/io/checkpoint.hpp.
+#include <relit/config.hpp>
 #include <relit/error.hpp>
 #include <relit/io/checkpoint.hpp>
 #include <relit/io/file.hpp>
@@ -86,17 +87,26 @@ Checkpoint load_checkpoint(const std::string& path) {
   if (header_size > body - start) throw bad("header length exceeds the file");
   Checkpoint ck;
   try {
-    ck.header = Json::parse(data.substr(start, header_size));
-  } catch (const Json::parse_error& e) {
-    throw bad(std::string("header is not JSON: ") + e.what());
+    ck.header = parse_json(data.substr(start, header_size), "its header");
+  } catch (const ConfigError& e) {
+    throw bad(e.what());
   }
   const std::size_t blobs = start + header_size;
   if (!ck.header.contains("tensors") || !ck.header["tensors"].is_array()) throw bad("header has no tensor table");
   for (const auto& t : ck.header["tensors"]) {
-    const std::string name = t.value("name", "");
-    const std::uint64_t count = t.value("count", std::uint64_t(0)), offset = t.value("offset", std::uint64_t(0));
-    if (name.empty() || offset > body - blobs || count * sizeof(float) > body - blobs - offset)
+    // A forged header may hold anything: check each entry's types before use, and compare sizes without
+    // multiplying (a count of 2^62 floats would overflow).
+    const auto field = [&](const char* key) { return t.is_object() && t.contains(key) ? &t.at(key) : nullptr; };
+    const Json *jname = field("name"), *jcount = field("count"), *joffset = field("offset");
+    if (!jname || !jname->is_string() || !jcount || !jcount->is_number_unsigned() || !joffset ||
+        !joffset->is_number_unsigned())
+      throw bad("the tensor table entry " + t.dump().substr(0, 200) +
+                " lacks a string 'name' and non-negative integer 'count' and 'offset'");
+    const std::string name = jname->get<std::string>();
+    const std::uint64_t count = jcount->get<std::uint64_t>(), offset = joffset->get<std::uint64_t>();
+    if (name.empty() || offset > body - blobs || count > (body - blobs - offset) / sizeof(float))
       throw bad("tensor '" + name + "' lies outside the file");
+    if (ck.tensors.count(name)) throw bad("tensor '" + name + "' appears twice in the header");
     std::vector<float> values(count);
     std::memcpy(values.data(), data.data() + blobs + offset, count * sizeof(float));
     ck.tensors.emplace(name, std::move(values));

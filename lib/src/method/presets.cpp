@@ -22,14 +22,6 @@ std::vector<std::string> preset_names() {
 }
 
 namespace {
-Json parse_json(const std::string& text, const std::string& where) {
-  try {
-    return Json::parse(text);
-  } catch (const Json::parse_error& e) {
-    throw ConfigError("", where + ": not valid JSON: " + e.what());
-  }
-}
-
 std::string join(const std::vector<std::string>& v) {
   std::string out;
   for (const auto& s : v) out += (out.empty() ? "" : ", ") + s;

@@ -343,11 +343,8 @@ void write_report(const std::string& dir, const std::vector<ViewResult>& views, 
 
   const fs::path root(dir);
   const auto make_folder = [](const fs::path& p) {
-    std::error_code ec;
-    fs::create_directories(p, ec);
-    if (ec || !fs::is_directory(p))
-      throw IOError("cannot create the report folder '" + p.string() +
-                    "': " + (ec ? ec.message() : std::string("a file of that name is in the way")));
+    io::create_directories(p.string(), "report folder");
+    io::remove_stale_temporaries(p.string());  // what a killed evaluation left behind
   };
   make_folder(root);
   if (options.write_predictions || options.write_exr) {
@@ -371,7 +368,14 @@ std::string format_summary_lines(const std::vector<ViewResult>& views) {
   for (const auto& s : summarize(views))
     out << s.split << ": PSNR " << fixed(s.psnr, 2) << " dB  SSIM " << fixed(s.ssim, 4) << " (" << s.n_views
         << (s.n_views == 1 ? " view)\n" : " views)\n");
-  out << "PSNR " << fixed(all.psnr, 4) << "\nSSIM " << fixed(all.ssim, 4) << "\n";
+  // The two parsable lines: "PSNR <value>" first, then which views the mean is of.
+  const auto splits = summarize(views);
+  std::string of =
+      splits.size() == 1
+          ? "the " + std::to_string(all.n_views) + " " + splits[0].split + " view" + (all.n_views == 1 ? "" : "s")
+          : "all " + std::to_string(all.n_views) + " views of " + std::to_string(splits.size()) + " splits";
+  out << "PSNR " << fixed(all.psnr, 4) << "  (mean over " << of << ")\nSSIM " << fixed(all.ssim, 4) << "  (mean over "
+      << of << ")\n";
   return out.str();
 }
 
