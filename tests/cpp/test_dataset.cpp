@@ -6,6 +6,7 @@
 #include <relit/io/image.hpp>
 
 #include <cmath>
+#include <functional>
 #include <fstream>
 
 namespace relit {
@@ -201,12 +202,36 @@ TEST(Dataset, ExistingFoldersAreNotDamagedAndCancelledRunsLeaveNothing) {
   for (const auto& e : fs::directory_iterator(dir.path())) entries += 1, (void)e;
   EXPECT_EQ(entries, 1) << "a cancelled generation must leave no temporary folder";
 
-  // With overwrite, the old folder is replaced only by a complete dataset.
+  // --overwrite replaces only a dataset relit wrote: never a folder of other files, nor a file.
   DatasetSettings s = tiny();
   s.overwrite = true;
-  generate_dataset(dev, tiny_scene(), out.string(), s);
-  EXPECT_FALSE(fs::exists(out / "keep.txt"));
-  EXPECT_TRUE(fs::exists(out / "transforms_train.json"));
+  const auto folder_before = test::snapshot(out);
+  EXPECT_THROW(generate_dataset(dev, tiny_scene(), out.string(), s), IOError);
+  EXPECT_EQ(test::snapshot(out), folder_before);
+  const fs::path file = dir.path() / "notes.txt";
+  std::ofstream(file) << "precious";
+  EXPECT_THROW(generate_dataset(dev, tiny_scene(), file.string(), s), IOError);
+  EXPECT_EQ(io::read_file(file.string()), "precious");
+  fs::remove(file);
+
+  // A relit dataset is replaced, only by a complete one.
+  const fs::path ds = dir.path() / "ds3";
+  generate_dataset(dev, tiny_scene(), ds.string(), tiny());
+  const auto old = test::snapshot(ds);
+  const auto parent_before = test::snapshot(dir.path());
+  {
+    test::FailWrites fail(io::testing::Stage::rename, "ds3");  // the new dataset fails to move into place
+    EXPECT_THROW(generate_dataset(dev, tiny_scene(), ds.string(), s), IOError);
+  }
+  EXPECT_EQ(test::snapshot(dir.path()), parent_before) << "the old dataset changed or a temporary was left";
+  s.seed = 6;
+  generate_dataset(dev, tiny_scene(), ds.string(), s);
+  EXPECT_NE(test::snapshot(ds), old);
+  EXPECT_TRUE(fs::exists(ds / "transforms_train.json"));
+  // ... but not once the user has added files of their own.
+  std::ofstream(ds / "train" / "my_notes.txt") << "mine";
+  EXPECT_THROW(generate_dataset(dev, tiny_scene(), ds.string(), s), IOError);
+  EXPECT_EQ(io::read_file((ds / "train" / "my_notes.txt").string()), "mine");
 
   DatasetSettings bad = tiny();
   bad.intensity_min = -1;
@@ -215,6 +240,101 @@ TEST(Dataset, ExistingFoldersAreNotDamagedAndCancelledRunsLeaveNothing) {
   bad.lighting = "sun";
   EXPECT_THROW(plan_dataset(bad), InvalidArgument);
   EXPECT_THROW(read_dataset((dir.path() / "nothing").string()), IOError);
+}
+
+// Hand-edited or foreign transforms files: each defect is an IOError naming the file, the frame and the key.
+TEST(Dataset, MalformedTransformsAreClearErrorsNamingTheFrameAndKey) {
+  test::TempDir dir("dataset-bad");
+  const std::string out = (dir.path() / "ds").string();
+  generate_dataset(test::test_device(), tiny_scene(), out, tiny());
+  const std::string path = (fs::path(out) / "transforms_train.json").string();
+  const Json good = parse_json(io::read_file(path), path);
+  const std::vector<std::pair<std::function<void(Json&)>, std::string>> cases = {
+      {[](Json& d) { d["frames"][1].erase("light"); }, "frames[1] (train/r_001.exr).light is missing"},
+      {[](Json& d) { d["frames"][0]["light"]["type"] = "spot"; }, "light.type must be \"point\""},
+      {[](Json& d) { d["frames"][0]["light"]["colour"] = 1; }, "light.colour is not a key"},
+      {[](Json& d) {
+         d["frames"][0]["light"]["position"] = {0.2, 0, 0};
+       },
+       "inside the scene box"},
+      {[](Json& d) {
+         d["frames"][0]["light"]["position"] = {1e30, 0, 0};
+       },
+       "within 1e6"},
+      {[](Json& d) {
+         d["frames"][0]["light"]["intensity"] = {1, 2};
+       },
+       "light.intensity must be an array of 3"},
+      {[](Json& d) { d["lighting"] = "sun"; }, "lighting must be \"point\" or \"env+point\""},
+      {[](Json& d) { d.erase("lighting"); }, "lighting must be"},
+      {[](Json& d) { d["w"] = 0; }, "w must be the image width"},
+      {[](Json& d) { d["camera_angle_x"] = "wide"; }, "camera_angle_x must be a finite number"},
+      {[](Json& d) { d["frames"][0]["file_path"] = "../../etc/passwd"; }, "leaves the dataset folder"},
+      {[](Json& d) { d["frames"][0]["file_path"] = "/etc/passwd"; }, "leaves the dataset folder"},
+      {[](Json& d) {
+         for (auto& row : d["frames"][0]["transform_matrix"]) row = {0, 0, 0, 0};
+       },
+       "bottom row"},
+      {[](Json& d) {
+         for (int r = 0; r < 3; ++r) d["frames"][0]["transform_matrix"][r] = {0, 0, 0, 1};
+       },
+       "must be a rotation"},
+      {[](Json& d) {
+         d["frames"][0]["transform_matrix"][3] = {0, 0, 0, 2};
+       },
+       "bottom row"},
+      {[](Json& d) {
+         d["frames"][0]["transform_matrix"] = {1, 2, 3};
+       },
+       "must be a 4x4 array"},
+      {[](Json& d) {
+         d["environment"] = {{"file", "environment.exr"}};
+       },
+       "must be null for lighting \"point\""},
+      {[](Json& d) { d["frames"] = 3; }, "frames must be an array"},
+  };
+  for (const auto& [edit, expected] : cases) {
+    Json doc = good;
+    edit(doc);
+    io::write_file_atomic(path, doc.dump(2));
+    std::string m = "(no error)";
+    try {
+      read_dataset(out);
+    } catch (const IOError& e) {
+      m = e.what();
+    }
+    EXPECT_NE(m.find(expected), std::string::npos) << "expected '" << expected << "', got: " << m;
+    EXPECT_NE(m.find("transforms_train.json"), std::string::npos) << m;
+  }
+  // A duplicate key is ambiguous: refused too.
+  std::string text = good.dump();
+  text.insert(1, "\"w\": 4, ");
+  io::write_file_atomic(path, text);
+  EXPECT_THROW(read_dataset(out), Error);
+  io::write_file_atomic(path, good.dump(2));
+  EXPECT_NO_THROW(read_dataset(out));
+
+  // Splits must agree on the lighting and the environment, whatever order the folder lists them in.
+  const std::string val = (fs::path(out) / "transforms_val.json").string();
+  const std::string val_text = io::read_file(val);
+  Json v = parse_json(val_text, val);
+  v["lighting"] = "env+point";
+  v["environment"] = {{"file", "environment.exr"}, {"scale", 1}, {"visible", false}};
+  io::write_file_atomic(val, v.dump(2));
+  EXPECT_THROW(read_dataset(out), IOError);
+  io::write_file_atomic(val, val_text);
+
+  // Negative radiance is not data.
+  const fs::path view = fs::path(out) / read_dataset(out).splits.at("val")[0].file_path;
+  Image img = read_image(view.string());
+  img.pixels[3 * img.channels + 1] = -0.5f;
+  write_image(view.string(), img);
+  try {
+    load_split(out, "val");
+    FAIL() << "a negative pixel must throw";
+  } catch (const IOError& e) {
+    EXPECT_NE(std::string(e.what()).find("pixel (3, 0) channel 1"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace relit

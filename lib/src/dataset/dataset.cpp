@@ -9,10 +9,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <numeric>
 #include <random>
+#include <set>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -49,11 +51,6 @@ std::string frame_name(const std::string& split, std::size_t i) {
 }
 
 Json vec_json(const Float3& v) { return Json::array({v[0], v[1], v[2]}); }
-
-Float3 vec_from(const Json& j, const std::string& what) {
-  if (!j.is_array() || j.size() != 3) throw IOError("dataset: " + what + " must be an array of 3 numbers");
-  return {j[0].get<float>(), j[1].get<float>(), j[2].get<float>()};
-}
 
 }  // namespace
 
@@ -158,17 +155,86 @@ DatasetDescription plan_dataset(const DatasetSettings& s) {
   return d;
 }
 
+namespace {
+
+// --overwrite replaces only what relit wrote: a folder with a scene.json and transforms_*.json files that
+// carry "relit_version", and besides them only the split folders of those files holding images. Anything
+// else (a home folder, a file, a dataset with the user's own files added) is refused before any work.
+void check_replaceable_dataset(const fs::path& out) {
+  const std::string named = "--overwrite: '" + out.string() + "'";
+  std::error_code ec;
+  if (!fs::is_directory(out, ec))
+    throw IOError(named + " is a file, not a dataset folder; relit replaces only a dataset it wrote");
+  std::vector<std::string> splits, foreign;
+  bool scene = false;
+  for (fs::directory_iterator it(out, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind("transforms_", 0) == 0 && it->path().extension() == ".json" && it->is_regular_file()) {
+      Json doc;
+      try {
+        doc = parse_json(io::read_file(it->path().string()), name);
+      } catch (const Error&) {}
+      if (doc.is_object() && doc.contains("relit_version")) {
+        splits.push_back(name.substr(11, name.size() - 16));
+        continue;
+      }
+    } else if ((name == "scene.json" || name == "environment.exr") && it->is_regular_file()) {
+      scene |= name == "scene.json";
+      continue;
+    } else if (it->is_directory()) {
+      continue;  // checked below against the splits
+    }
+    foreign.push_back(name);
+  }
+  if (ec) throw IOError("cannot read " + named + ": " + ec.message());
+  if (!scene || splits.empty())
+    throw IOError(named +
+                  " is not a dataset relit wrote (no scene.json and transforms_*.json by relit); it is "
+                  "left untouched. Choose another --out, or remove it yourself");
+  for (fs::directory_iterator it(out, ec), end; !ec && it != end; it.increment(ec)) {
+    if (!it->is_directory()) continue;
+    const std::string name = it->path().filename().string();
+    if (std::find(splits.begin(), splits.end(), name) == splits.end()) {
+      foreign.push_back(name + "/");
+      continue;
+    }
+    for (const auto& f : fs::directory_iterator(it->path(), ec)) {
+      const std::string ext = f.path().extension().string();
+      if (!f.is_regular_file() || (ext != ".exr" && ext != ".png"))
+        foreign.push_back(name + "/" + f.path().filename().string());
+    }
+  }
+  if (!foreign.empty()) {
+    std::string list;
+    for (std::size_t i = 0; i < foreign.size() && i < 5; ++i) list += (i ? ", " : "") + foreign[i];
+    if (foreign.size() > 5) list += ", ...";
+    throw IOError(named + " holds files relit did not write (" + list +
+                  "); it is left untouched. Move them out or choose another --out");
+  }
+}
+
+}  // namespace
+
 void generate_dataset(const Device& device, const Scene& input_scene, const std::string& out_dir,
                       const DatasetSettings& s, const ProgressCallback& progress) {
   s.validate();
   const fs::path out = fs::path(out_dir).lexically_normal();
   if (out.empty()) throw InvalidArgument("the output folder is empty");
-  if (fs::exists(out) && !s.overwrite)
+  std::error_code ec;
+  const bool exists = fs::exists(fs::symlink_status(out, ec));
+  if (ec && ec != std::errc::no_such_file_or_directory)
+    throw IOError("cannot use output folder '" + out.string() + "': " + ec.message());
+  if (exists && !s.overwrite)
     throw IOError("output folder '" + out.string() +
                   "' already exists; choose another --out or pass --overwrite "
                   "(the existing folder is left untouched)");
+  if (exists) check_replaceable_dataset(out);
   const fs::path parent = out.has_parent_path() ? out.parent_path() : fs::path(".");
-  if (!fs::is_directory(parent)) throw IOError("the parent folder of '" + out.string() + "' does not exist");
+  if (!fs::is_directory(parent, ec)) throw IOError("the parent folder of '" + out.string() + "' does not exist");
+  if (::access(parent.c_str(), W_OK | X_OK) != 0)
+    throw IOError("cannot write into '" + parent.string() +
+                  "', the parent folder of the dataset: " + std::strerror(errno));
+  io::remove_stale_temporaries(parent.string());  // what killed runs left behind
 
   Scene scene = input_scene;
   Json scene_json = scene.description;
@@ -192,8 +258,9 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
   ProgressTracker tracker(progress, total, "samples");
 
   const fs::path tmp = parent / ("." + out.filename().string() + ".partial-" + std::to_string(::getpid()));
-  fs::remove_all(tmp);
-  fs::create_directories(tmp);
+  if (!fs::create_directory(tmp, ec) || ec)
+    throw IOError("cannot create the temporary folder '" + tmp.string() +
+                  "': " + (ec ? ec.message() : std::string("it exists")));
   try {
     if (scene.environment) {
       write_image((tmp / "environment.exr").string(), scene.environment->image());
@@ -261,14 +328,21 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
       io::write_file_atomic((tmp / ("transforms_" + name + ".json")).string(), doc.dump(2) + "\n");
     }
     // Complete: move it into place. An existing folder is replaced only now, and only on request.
-    if (fs::exists(out)) {
+    if (exists) {
+      // Checked again now that the render is done: the folder may have changed meanwhile.
+      check_replaceable_dataset(out);
       const fs::path old = parent / ("." + out.filename().string() + ".old-" + std::to_string(::getpid()));
-      fs::remove_all(old);
-      fs::rename(out, old);
-      fs::rename(tmp, out);
-      fs::remove_all(old);
+      io::rename_directory(out.string(), old.string());
+      try {
+        io::rename_directory(tmp.string(), out.string());
+      } catch (...) {
+        std::error_code restore;
+        fs::rename(old, out, restore);  // put the old dataset back
+        throw;
+      }
+      fs::remove_all(old, ec);
     } else {
-      fs::rename(tmp, out);
+      io::rename_directory(tmp.string(), out.string());
     }
   } catch (...) {
     std::error_code ec;
@@ -278,41 +352,122 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
   log_info("dataset written to " + out.string());
 }
 
-DatasetDescription read_dataset(const std::string& dir) {
-  if (!fs::is_directory(dir)) throw IOError("dataset folder '" + dir + "' does not exist");
-  DatasetDescription d;
-  for (const auto& entry : fs::directory_iterator(dir)) {
-    const std::string fname = entry.path().filename().string();
-    if (fname.rfind("transforms_", 0) != 0 || entry.path().extension() != ".json") continue;
-    const std::string split = fname.substr(11, fname.size() - 11 - 5);
-    std::ifstream f(entry.path());
-    Json doc;
-    try {
-      doc = Json::parse(f);
-      const float angle = doc.at("camera_angle_x").get<float>();
-      const int w = doc.value("w", 0), h = doc.value("h", 0);
-      d.lighting = doc.value("lighting", "");
-      d.environment = doc.value("environment", Json());
-      auto& frames = d.splits[split];
-      for (const auto& fr : doc.at("frames")) {
-        DatasetFrame frame;
-        frame.file_path = fr.at("file_path").get<std::string>();
-        const Json& m = fr.at("transform_matrix");
-        for (int r = 0; r < 4; ++r)
-          for (int c = 0; c < 4; ++c) frame.camera.transform[r][c] = m.at(r).at(c).get<float>();
-        frame.camera.camera_angle_x = angle;
-        frame.camera.width = w;
-        frame.camera.height = h;
-        if (fr.contains("light")) {
-          frame.light.position = vec_from(fr["light"].at("position"), "light position");
-          frame.light.intensity = vec_from(fr["light"].at("intensity"), "light intensity");
-        }
-        frames.push_back(frame);
+namespace {
+
+// One transforms_<split>.json, checked key by key: every problem names the file, the frame and the key.
+void read_transforms(const fs::path& file, const std::string& split, DatasetDescription& d, Json& environment) {
+  const std::string where = "dataset file '" + file.string() + "'";
+  const Json doc = parse_json(io::read_file(file.string()), where);
+  auto bad = [&](const std::string& key, const std::string& why) { return IOError(where + ": " + key + " " + why); };
+  if (!doc.is_object()) throw IOError(where + " must hold a JSON object");
+  auto number = [&](const Json& obj, const char* key, const std::string& name) {
+    if (!obj.contains(key) || !obj[key].is_number() || !std::isfinite(obj[key].get<double>()))
+      throw bad(name, "must be a finite number");
+    return obj[key].get<double>();
+  };
+  const double angle = number(doc, "camera_angle_x", "camera_angle_x");
+  auto size = [&](const char* key) {
+    if (!doc.contains(key) || !doc[key].is_number_integer() || doc[key].get<long long>() < 1 ||
+        doc[key].get<long long>() > 16384)
+      throw bad(key, std::string("must be the image ") + (key[0] == 'w' ? "width" : "height") +
+                         " in pixels, an integer in [1, 16384]");
+    return doc[key].get<int>();
+  };
+  const int w = size("w"), h = size("h");
+  if (!doc.contains("lighting") || !doc["lighting"].is_string() ||
+      (doc["lighting"] != "point" && doc["lighting"] != "env+point"))
+    throw bad("lighting", "must be \"point\" or \"env+point\", got " +
+                              (doc.contains("lighting") ? doc["lighting"].dump() : "nothing"));
+  const std::string lighting = doc["lighting"].get<std::string>();
+  if (!d.lighting.empty() && d.lighting != lighting)
+    throw bad("lighting", "is \"" + lighting + "\" but another split of the dataset says \"" + d.lighting + "\"");
+  d.lighting = lighting;
+  const Json env = doc.contains("environment") ? doc["environment"] : Json();
+  if (lighting == "env+point" && env.is_null()) throw bad("environment", "is required for lighting \"env+point\"");
+  if (lighting == "point" && !env.is_null()) throw bad("environment", "must be null for lighting \"point\"");
+  if (!environment.is_null() && env != environment)
+    throw bad("environment", "differs from that of another split (" + environment.dump() + ")");
+  environment = env;
+  if (!doc.contains("frames") || !doc["frames"].is_array()) throw bad("frames", "must be an array of views");
+
+  auto& frames = d.splits[split];
+  for (std::size_t i = 0; i < doc["frames"].size(); ++i) {
+    const Json& fr = doc["frames"][i];
+    const std::string at = "frames[" + std::to_string(i) + "]";
+    if (!fr.is_object()) throw bad(at, "must be an object");
+    DatasetFrame frame;
+    if (!fr.contains("file_path") || !fr["file_path"].is_string() || fr["file_path"].get<std::string>().empty())
+      throw bad(at + ".file_path", "must be the image's path relative to the dataset folder");
+    frame.file_path = fr["file_path"].get<std::string>();
+    // The image must lie inside the dataset folder: "../../x" or "/etc/x" are refused, not followed.
+    const fs::path rel = fs::path(frame.file_path).lexically_normal();
+    if (rel.is_absolute() || rel.empty() || *rel.begin() == "..")
+      throw bad(at + ".file_path", "\"" + frame.file_path + "\" leaves the dataset folder; give a path inside it");
+    const std::string view = at + " (" + frame.file_path + ")";
+    if (!fr.contains("transform_matrix") || !fr["transform_matrix"].is_array() || fr["transform_matrix"].size() != 4)
+      throw bad(view + ".transform_matrix", "must be a 4x4 array of numbers");
+    for (int r = 0; r < 4; ++r) {
+      const Json& row = fr["transform_matrix"][r];
+      if (!row.is_array() || row.size() != 4) throw bad(view + ".transform_matrix", "must be a 4x4 array of numbers");
+      for (int c = 0; c < 4; ++c) {
+        if (!row[c].is_number()) throw bad(view + ".transform_matrix", "must be a 4x4 array of numbers");
+        frame.camera.transform[r][c] = row[c].get<float>();
       }
-    } catch (const Json::exception& e) {
-      throw IOError("dataset file '" + entry.path().string() + "' is malformed: " + e.what());
     }
+    frame.camera.camera_angle_x = float(angle);
+    frame.camera.width = w;
+    frame.camera.height = h;
+    try {
+      frame.camera.validate();
+    } catch (const InvalidArgument& e) {
+      throw bad(view + ".transform_matrix", std::string("is not a usable camera: ") + e.what());
+    }
+    if (!fr.contains("light") || !fr["light"].is_object())
+      throw bad(view + ".light", "is missing: every view needs its point light {type, position, intensity}");
+    const Json& l = fr["light"];
+    if (l.contains("type") && l["type"] != "point")
+      throw bad(view + ".light.type", "must be \"point\", got " + l["type"].dump());
+    for (const char* key : {"position", "intensity"}) {
+      if (!l.contains(key) || !l[key].is_array() || l[key].size() != 3 || !l[key][0].is_number() ||
+          !l[key][1].is_number() || !l[key][2].is_number())
+        throw bad(view + ".light." + key, "must be an array of 3 numbers");
+    }
+    for (const auto& [key, target] : {std::pair<const char*, Float3*>{"position", &frame.light.position},
+                                      std::pair<const char*, Float3*>{"intensity", &frame.light.intensity}})
+      for (int k = 0; k < 3; ++k) (*target)[k] = l[key][k].get<float>();
+    try {
+      frame.light.validate();
+    } catch (const InvalidArgument& e) {
+      throw bad(view + ".light", std::string("is not usable: ") + e.what());
+    }
+    const std::set<std::string> known = {"type", "position", "intensity"};
+    for (auto it = l.begin(); it != l.end(); ++it)
+      if (!known.count(it.key()))
+        throw bad(view + ".light." + it.key(), "is not a key of a point light (type, position, intensity)");
+    frames.push_back(frame);
   }
+}
+
+}  // namespace
+
+DatasetDescription read_dataset(const std::string& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw IOError("dataset folder '" + dir + "' does not exist");
+  // In name order, so that nothing depends on the order the file system lists the folder in.
+  std::vector<fs::path> files;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string fname = it->path().filename().string();
+    if (fname.rfind("transforms_", 0) == 0 && it->path().extension() == ".json") files.push_back(it->path());
+  }
+  if (ec) throw IOError("cannot read dataset folder '" + dir + "': " + ec.message());
+  std::sort(files.begin(), files.end());
+  DatasetDescription d;
+  Json environment;
+  for (const auto& file : files) {
+    const std::string fname = file.filename().string();
+    read_transforms(file, fname.substr(11, fname.size() - 11 - 5), d, environment);
+  }
+  d.environment = environment;
   if (d.splits.empty()) throw IOError("'" + dir + "' holds no transforms_*.json: not a relit/NeRF dataset folder");
   return d;
 }

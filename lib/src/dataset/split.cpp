@@ -28,7 +28,10 @@ std::shared_ptr<const EnvironmentLight> load_environment(const std::string& data
   if (!scale.is_number() || !std::isfinite(scale.get<double>()) || scale.get<double>() < 0)
     throw IOError(where + "/scale must be a finite number >= 0, got " + scale.dump());
   if (!visible.is_boolean()) throw IOError(where + "/visible must be true or false, got " + visible.dump());
-  const std::string path = (fs::path(dataset_dir) / env["file"].get<std::string>()).string();
+  const fs::path rel = fs::path(env["file"].get<std::string>()).lexically_normal();
+  if (rel.is_absolute() || rel.empty() || *rel.begin() == "..")
+    throw IOError(where + "/file \"" + env["file"].get<std::string>() + "\" leaves the dataset folder");
+  const std::string path = (fs::path(dataset_dir) / rel).string();
   return std::make_shared<const EnvironmentLight>(read_image(path), scale.get<float>(), visible.get<bool>(), path);
 }
 }  // namespace
@@ -65,7 +68,10 @@ DatasetSplit load_split(const std::string& dataset_dir, const std::string& split
     for (std::size_t p = 0; p < std::size_t(img.width) * img.height; ++p)
       for (int c = 0; c < 3; ++c) {
         const float v = img.pixels[p * img.channels + c];
-        if (!std::isfinite(v)) throw IOError(path + ": pixel " + std::to_string(p) + " is not finite");
+        if (!std::isfinite(v) || v < 0)
+          throw IOError(path + ": pixel (" + std::to_string(p % img.width) + ", " + std::to_string(p / img.width) +
+                        ") channel " + std::to_string(c) + " is " + std::to_string(v) +
+                        "; radiance must be finite and >= 0");
         out.images.push_back(v);
       }
     out.names.push_back(fs::path(f.file_path).stem().string());

@@ -101,6 +101,9 @@ void image_rays(const Device& device, const Camera& camera, const PointLight& li
 }
 
 std::array<float, 2> pixel_sample_offset(std::uint32_t spp, std::uint32_t s) {
+  if (spp > 65536)
+    throw InvalidArgument("samples per pixel must be at most 65536 (a 256 x 256 grid in each pixel), got " +
+                          std::to_string(spp));
   std::uint32_t n = 1;
   while (n * n < spp) ++n;
   if (spp == 0 || n * n != spp)

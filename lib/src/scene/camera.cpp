@@ -2,6 +2,7 @@
 #include <relit/error.hpp>
 #include <relit/scene/camera.hpp>
 
+#include <algorithm>
 #include <cmath>
 
 namespace relit {
@@ -18,6 +19,12 @@ Float3 normalised(const Float3& a) {
 }  // namespace
 
 Camera Camera::look_at(const Float3& eye, const Float3& target, const Float3& up, float angle, int width, int height) {
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(eye[k]) || !std::isfinite(target[k]) || !std::isfinite(up[k]))
+      throw InvalidArgument("look_at: eye, target and up must be finite");
+  const Float3 view = sub(eye, target);
+  if (std::sqrt(view[0] * view[0] + view[1] * view[1] + view[2] * view[2]) < 1e-6f)
+    throw InvalidArgument("look_at: eye and target are the same point, so there is no view direction");
   const Float3 back = normalised(sub(eye, target));  // camera +z points away from what it looks at
   Float3 right = cross(up, back);
   if (std::sqrt(right[0] * right[0] + right[1] * right[1] + right[2] * right[2]) < 1e-6f)
@@ -30,6 +37,7 @@ Camera Camera::look_at(const Float3& eye, const Float3& target, const Float3& up
   c.camera_angle_x = angle;
   c.width = width;
   c.height = height;
+  c.validate();
   return c;
 }
 
@@ -52,6 +60,24 @@ void Camera::validate() const {
   for (const auto& row : transform)
     for (float v : row)
       if (!std::isfinite(v)) throw InvalidArgument("the camera transform contains NaN or infinite values");
+  if (transform[3][0] != 0 || transform[3][1] != 0 || transform[3][2] != 0 || transform[3][3] != 1)
+    throw InvalidArgument("the camera transform's bottom row must be 0 0 0 1 (a camera-to-world rigid transform)");
+  // The upper 3x3 is the camera's right, up and back axes: a rotation. A zero, scaled or singular block
+  // would give rays without a direction.
+  double worst = 0;
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b) {
+      double dot = 0;
+      for (int r = 0; r < 3; ++r) dot += double(transform[r][a]) * transform[r][b];
+      worst = std::max(worst, std::abs(dot - (a == b ? 1.0 : 0.0)));
+    }
+  if (worst > 1e-3)
+    throw InvalidArgument(
+        "the camera transform's upper 3x3 block must be a rotation (orthonormal columns: right, "
+        "up, back), but its columns deviate by " +
+        std::to_string(worst) + " (a zero, scaled or singular matrix?)");
+  for (int r = 0; r < 3; ++r)
+    if (std::abs(transform[r][3]) > 1e6f) throw InvalidArgument("the camera lies farther than 1e6 from the origin");
 }
 
 }  // namespace relit

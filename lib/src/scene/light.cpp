@@ -14,7 +14,13 @@ double luminance(double r, double g, double b) { return 0.2126 * r + 0.7152 * g 
 
 void PointLight::validate() const {
   for (float p : position)
-    if (!std::isfinite(p)) throw InvalidArgument("point light position must be finite");
+    if (!std::isfinite(p) || std::abs(p) > 1e6f)
+      throw InvalidArgument("point light position must be finite and within 1e6 of the origin, got " +
+                            std::to_string(p));
+  if (std::abs(position[0]) <= 1 && std::abs(position[1]) <= 1 && std::abs(position[2]) <= 1)
+    throw InvalidArgument("a point light at (" + std::to_string(position[0]) + ", " + std::to_string(position[1]) +
+                          ", " + std::to_string(position[2]) +
+                          ") lies inside the scene box [-1, 1]^3; lights must be outside the medium");
   for (float i : intensity)
     if (!(i >= 0.0f) || !std::isfinite(i))
       throw InvalidArgument("point light intensity must be finite and >= 0 (W/sr per channel), got " +

@@ -1,5 +1,6 @@
 // Scene JSON: parsing (every key checked, every default recorded), built-in scenes, file loading.
 #include <relit/error.hpp>
+#include <relit/io/file.hpp>
 #include <relit/scene/procedural.hpp>
 #include <relit/scene/scene.hpp>
 #include <relit/scene/vdb.hpp>
@@ -217,6 +218,11 @@ Scene Scene::from_json(const Json& json, const std::string& base_dir) {
     l.position = read_vec3(r, "position", {0, 0, 4}, -1e6f, 1e6f, "position (scene units)");
     l.intensity = read_vec3(r, "intensity", {600, 600, 600}, 0.0f, 1e9f, "radiant intensity, W/sr per channel, >= 0");
     r.finish();
+    try {
+      l.validate();
+    } catch (const InvalidArgument& e) {
+      throw ConfigError(ptr + "/position", e.what());
+    }
     s.lights.push_back(l);
     lights_resolved.push_back(r.resolved());
   }
@@ -283,18 +289,12 @@ Scene Scene::from_json(const Json& json, const std::string& base_dir) {
 }
 
 Scene Scene::load(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw IOError("cannot open scene file '" + path + "'");
-  Json j;
-  try {
-    j = Json::parse(f);
-  } catch (const Json::parse_error& e) {
-    throw ConfigError("", "scene file '" + path + "' is not valid JSON: " + e.what());
-  }
+  if (!fs::is_regular_file(path)) throw IOError("cannot open scene file '" + path + "': no such file");
+  const Json j = parse_json(io::read_file(path), "scene file '" + path + "'");
   try {
     return from_json(j, fs::path(path).parent_path().string().empty() ? "." : fs::path(path).parent_path().string());
   } catch (const ConfigError& e) {
-    throw ConfigError(e.pointer(), std::string(e.what()) + " (in '" + path + "')");
+    throw ConfigError(e.pointer(), e.message() + " (in '" + path + "')");
   }
 }
 
