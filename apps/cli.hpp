@@ -3,6 +3,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cmath>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -12,16 +14,46 @@ namespace relit::cli {
 /// Errors are printed to stderr as "relit: error: ..." and give exit code 1 (2 for usage errors).
 int run(const std::vector<std::string>& args);
 
-/// An option check: an integer of at least `min` (CLI11's Range names the type's whole range in its message).
-inline CLI::Validator at_least(long long min) {
-  const std::string bound = std::to_string(min);
+/// An option check: an integer in [lo, hi], written in decimal ("-5", "1e3" and "4294967296" for a 32-bit
+/// option are refused with the valid range, never wrapped or ignored).
+inline CLI::Validator integer_in(long long lo, long long hi) {
+  const std::string range = "[" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
   return CLI::Validator(
-      [min, bound](std::string& text) {
+      [lo, hi, range](std::string& text) {
         long long v = 0;
-        if (CLI::detail::lexical_cast(text, v) && v >= min) return std::string();
-        return "must be an integer of at least " + bound + ", got " + text;
+        std::size_t used = 0;
+        try {
+          v = std::stoll(text, &used, 10);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == text.size() && !text.empty() && v >= lo && v <= hi) return std::string();
+        return "must be an integer in " + range + ", got " + text;
       },
-      ">=" + bound);
+      range);
+}
+
+/// An integer of at least `min` (up to the 32-bit range).
+inline CLI::Validator at_least(long long min) { return integer_in(min, 4294967295LL); }
+
+/// An option check: a finite number in [lo, hi] ("nan", "inf" and "1e999" are refused).
+inline CLI::Validator number_in(double lo, double hi) {
+  std::ostringstream r;
+  r << "[" << lo << ", " << hi << "]";
+  const std::string range = r.str();
+  return CLI::Validator(
+      [lo, hi, range](std::string& text) {
+        double v = 0;
+        std::size_t used = 0;
+        try {
+          v = std::stod(text, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used == text.size() && !text.empty() && std::isfinite(v) && v >= lo && v <= hi) return std::string();
+        return "must be a finite number in " + range + ", got " + text;
+      },
+      range);
 }
 
 // Each subcommand registers itself on the app; add new ones in cli.cpp.

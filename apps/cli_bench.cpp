@@ -563,7 +563,8 @@ void print_table(const std::string& device, const std::vector<Json>& rows) {
 }
 
 int run_compare(const std::vector<std::string>& files) {
-  const Json a = Json::parse(io::read_file(files[0])), b = Json::parse(io::read_file(files[1]));
+  const Json a = parse_json(io::read_file(files[0]), "bench report '" + files[0] + "'"),
+             b = parse_json(io::read_file(files[1]), "bench report '" + files[1] + "'");
   auto index = [](const Json& doc, std::size_t d) {
     std::map<std::string, Json> m;
     for (const Json& r : doc.at("devices").at(d).at("results")) m[r.at("name").get<std::string>()] = r;
@@ -593,7 +594,16 @@ int run_compare(const std::vector<std::string>& files) {
 }
 
 int run_bench(const BenchOptions& o) {
-  if (!o.compare.empty()) return run_compare(o.compare);
+  if (!o.compare.empty()) {
+    try {
+      return run_compare(o.compare);
+    } catch (const Json::exception& e) {  // valid JSON of another layout
+      throw InvalidArgument("--compare: " + o.compare[0] + " and " + o.compare[1] +
+                            " must be reports of relit bench --json (devices[].results[] with name, status, "
+                            "median_s): " +
+                            e.what());
+    }
+  }
   if (o.suite != "kernels" && o.suite != "e2e" && o.suite != "all")
     throw InvalidArgument("--suite must be kernels, e2e or all, got '" + o.suite + "'");
   if (o.repeats == 0) throw InvalidArgument("--repeats must be at least 1");
@@ -687,7 +697,9 @@ void add_bench_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::IsMember({"kernels", "e2e", "all"}));
   cmd->add_option("--json", o->json, "write every number to this JSON file");
-  cmd->add_option("--repeats", o->repeats, "timed runs per case (median and spread)")->capture_default_str();
+  cmd->add_option("--repeats", o->repeats, "timed runs per case (median and spread)")
+      ->check(integer_in(1, 100000))
+      ->capture_default_str();
   cmd->add_option("--filter", o->filter, "run only the cases whose name contains this text");
   cmd->add_flag("--quick", o->quick, "small sizes: checks that everything runs and verifies (seconds)");
   cmd->add_option("--compare", o->compare,

@@ -65,12 +65,15 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("run", o->run, "run folder written by relit train")->required();
   cmd->add_option("--dataset", o->dataset, "dataset folder (default: the run's)");
   cmd->add_option("--split", o->splits, "splits to evaluate (default: test and every test_* set)");
-  cmd->add_option("--max-views", o->max_views, "at most this many views per split (0: all)")->capture_default_str();
+  cmd->add_option("--max-views", o->max_views, "at most this many views per split (0: all)")
+      ->check(integer_in(0, 1000000))
+      ->capture_default_str();
   cmd->add_option("--out,-o", o->out, "report folder (default: RUN/eval)");
   cmd->add_flag("--no-images", o->no_images, "write only the metrics and contact sheets, not every prediction");
   cmd->add_option("--visibility", o->visibility, "network or march (default: the model's setting)")
       ->check(CLI::IsMember({"network", "march"}));
   cmd->add_option("--spp", o->spp, "rays per pixel, averaged over an n x n grid in the pixel (1, 4, 9, ...)")
+      ->check(integer_in(1, 65536))
       ->capture_default_str();
   cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
   cmd->final_callback([o] {

@@ -58,33 +58,47 @@ void add_generate_command(CLI::App& app) {
       ->check(CLI::IsMember({"point", "env+point"}))
       ->capture_default_str();
   cmd->add_option("--seed", s.seed, "random seed (views, lights, path tracing, procedural scene)")
+      ->check(integer_in(0, 4294967295LL))
       ->capture_default_str();
-  cmd->add_option("--resolution", s.resolution, "image width and height in pixels")->capture_default_str();
-  cmd->add_option("--train", s.train, "training views")->capture_default_str();
-  cmd->add_option("--val", s.val, "validation views")->capture_default_str();
-  cmd->add_option("--test", s.test, "test views")->capture_default_str();
-  cmd->add_option("--spp", s.spp, "path-traced samples per pixel")->capture_default_str();
+  cmd->add_option("--resolution", s.resolution, "image width and height in pixels")
+      ->check(integer_in(4, 4096))
+      ->capture_default_str();
+  cmd->add_option("--train", s.train, "training views")->check(integer_in(0, 100000))->capture_default_str();
+  cmd->add_option("--val", s.val, "validation views")->check(integer_in(0, 100000))->capture_default_str();
+  cmd->add_option("--test", s.test, "test views")->check(integer_in(0, 100000))->capture_default_str();
+  cmd->add_option("--spp", s.spp, "path-traced samples per pixel")->check(integer_in(1, 65536))->capture_default_str();
   cmd->add_option("--test-spp", s.test_spp,
                   "samples per pixel of the test splits (0: --spp); the references that "
                   "evaluation compares with")
+      ->check(integer_in(0, 65536))
       ->capture_default_str();
-  cmd->add_option("--max-bounces", s.max_bounces, "scattering events per path (0 = unlimited)")->capture_default_str();
+  cmd->add_option("--max-bounces", s.max_bounces, "scattering events per path (0 = unlimited)")
+      ->check(integer_in(0, 100000))
+      ->capture_default_str();
   cmd->add_option("--intensity", o->intensity,
                   "point light intensity in W/sr: one value, or two for a range (default 600)")
+      ->check(number_in(0, 1e9))
       ->expected(1, 2);
   cmd->add_option("--light-distance", o->light_distance, "range of light distances from the centre (default 3 5)")
+      ->check(number_in(1.8, 1e6))
       ->expected(2);
-  cmd->add_option("--camera-distance", s.camera_distance, "camera distance from the centre")->capture_default_str();
+  cmd->add_option("--camera-distance", s.camera_distance, "camera distance from the centre")
+      ->check(number_in(1.8, 1e6))
+      ->capture_default_str();
   cmd->add_option("--fov", s.camera_angle_x, "horizontal field of view, radians (camera_angle_x)")
+      ->check(number_in(0.05, 3.0))
       ->capture_default_str();
   cmd->add_flag("--generalization", s.generalization,
                 "also write test sets at light distances 3, 5, 7, 10 and intensities 400, 800, 1200, 1600");
   cmd->add_option("--generalization-views", s.generalization_views, "views per generalisation test set")
+      ->check(integer_in(1, 100000))
       ->capture_default_str();
   cmd->add_option("--env-scale", s.env_scale, "env+point: scale of the procedural sky (scenes may bring their own map)")
+      ->check(number_in(0, 1e6))
       ->capture_default_str();
   cmd->add_flag("--env-visible", s.env_visible, "camera rays that miss the object see the environment");
   cmd->add_option("--scene-resolution", o->scene_resolution, "voxels per side of a built-in scene's grid")
+      ->check(integer_in(8, 512))
       ->capture_default_str();
   cmd->add_flag("!--no-previews", s.previews, "skip the PNG previews");
   cmd->add_flag("--overwrite", s.overwrite, "replace an existing output folder once the new dataset is complete");

@@ -49,13 +49,16 @@ int run_render(const RenderOptions& o) {
   std::shared_ptr<const EnvironmentLight> environment;  // --view of 'env+point' data: the dataset's
   if (!o.view.empty()) {
     // DATASET:SPLIT:INDEX — the camera and light of a dataset view.
-    const auto a = o.view.rfind(':'), b = o.view.rfind(':', a - 1);
-    if (a == std::string::npos || b == std::string::npos)
+    const auto a = o.view.rfind(':'), b = a == 0 || a == std::string::npos ? a : o.view.rfind(':', a - 1);
+    if (a == std::string::npos || b == std::string::npos || a == 0)
       throw InvalidArgument("--view takes DATASET:SPLIT:INDEX, got '" + o.view + "'");
     const auto desc = read_dataset(o.view.substr(0, b));
     const std::string split = o.view.substr(b + 1, a - b - 1);
     const auto it = desc.splits.find(split);
-    const std::size_t index = std::stoul(o.view.substr(a + 1));
+    const std::string index_text = o.view.substr(a + 1);
+    if (index_text.empty() || index_text.size() > 9 || index_text.find_first_not_of("0123456789") != std::string::npos)
+      throw InvalidArgument("--view: the view index must be a non-negative integer, got '" + index_text + "'");
+    const std::size_t index = std::stoul(index_text);
     if (it == desc.splits.end() || index >= it->second.size())
       throw InvalidArgument("--view: no view " + std::to_string(index) + " in split '" + split + "'");
     camera = it->second[index].camera;
@@ -107,27 +110,35 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--view", o->view,
                   "use the camera (and light, unless --light/--intensity are given) of a dataset "
                   "view: DATASET:SPLIT:INDEX");
-  cmd->add_option("--eye", o->eye, "camera position (x y z)")->expected(3);
-  cmd->add_option("--target", o->target, "point the camera looks at (x y z)")->expected(3);
+  cmd->add_option("--eye", o->eye, "camera position (x y z)")->check(number_in(-1e6, 1e6))->expected(3);
+  cmd->add_option("--target", o->target, "point the camera looks at (x y z)")->check(number_in(-1e6, 1e6))->expected(3);
   cmd->add_option("--resolution", o->resolution,
                   "image width and height (default 128; with --view: the view's "
                   "width, the height keeping its aspect)")
-      ->check(at_least(1));
-  cmd->add_option("--fov", o->fov, "horizontal field of view, radians")->capture_default_str();
-  cmd->add_option("--light", o->light, "point light position (x y z; default 0 -3 3, or the --view's)")->expected(3);
+      ->check(integer_in(1, 16384));
+  cmd->add_option("--fov", o->fov, "horizontal field of view, radians")
+      ->check(number_in(0.02, 3.0))
+      ->capture_default_str();
+  cmd->add_option("--light", o->light, "point light position (x y z; default 0 -3 3, or the --view's)")
+      ->check(number_in(-1e6, 1e6))
+      ->expected(3);
   cmd->add_option("--intensity", o->intensity,
                   "light intensity in W/sr: one value (white) or r g b (default 600, or the --view's)")
+      ->check(number_in(0, 1e9))
       ->expected(1, 3);
   cmd->add_option("--visibility", o->visibility, "network or march (default: the model's setting)")
       ->check(CLI::IsMember({"network", "march"}));
   cmd->add_option("--environment", o->environment,
                   "light the scene with this lat-long map (.exr/.hdr) as well, or 'none' (default: the dataset's "
                   "map for --view of 'env+point' data); the model must have been trained on 'env+point' data");
-  cmd->add_option("--env-scale", o->env_scale, "radiance scale of --environment")->capture_default_str();
+  cmd->add_option("--env-scale", o->env_scale, "radiance scale of --environment")
+      ->check(number_in(0, 1e6))
+      ->capture_default_str();
   cmd->add_flag("--env-visible", o->env_visible, "camera rays that miss the medium see --environment");
   cmd->add_option("--spp", o->spp,
                   "rays per pixel, averaged over an n x n grid in the pixel (1, 4, 9, ...): "
                   "anti-aliased edges, like the path tracer's box filter")
+      ->check(integer_in(1, 65536))
       ->capture_default_str();
   cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
   cmd->final_callback([o] {

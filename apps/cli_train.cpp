@@ -30,14 +30,28 @@ std::string fixed(double v, int digits) {
 }  // namespace
 
 int run_train(const TrainOptions& o) {
+  std::error_code ec;
+  const bool out_exists = fs::exists(o.out, ec);
+  if (ec) throw IOError("--out '" + o.out + "': " + ec.message());
+  if (out_exists && !fs::is_directory(o.out, ec))
+    throw IOError("--out '" + o.out + "' is an existing file; a run is written into a folder");
+  for (fs::path up = fs::path(o.out).parent_path(); !out_exists && !up.empty(); up = up.parent_path()) {
+    if (!fs::exists(up, ec)) continue;
+    if (!fs::is_directory(up, ec))
+      throw IOError("--out '" + o.out + "': '" + up.string() +
+                    "' is a file (Not a directory), so no run folder can be made there");
+    break;
+  }
   const std::string checkpoint = (fs::path(o.out) / "checkpoint.relit").string();
   Json config;
   if (o.resume) {
-    if (!fs::exists(checkpoint)) throw IOError("--resume: " + checkpoint + " does not exist");
-    config = Json::parse(io::read_file((fs::path(o.out) / "config.json").string()));
+    if (!fs::exists(checkpoint, ec)) throw IOError("--resume: " + checkpoint + " does not exist");
+    const std::string config_path = (fs::path(o.out) / "config.json").string();
+    config = parse_json(io::read_file(config_path), "the run's config '" + config_path + "'");
+    if (!config.is_object()) throw ConfigError("", "the run's config '" + config_path + "' is not a JSON object");
     config.erase("dataset");
   } else {
-    if (fs::exists(checkpoint))
+    if (fs::exists(checkpoint, ec))
       throw IOError(o.out +
                     " already holds a run (checkpoint.relit); pass --resume to continue it or choose "
                     "another --out");
@@ -102,13 +116,16 @@ void add_train_command(CLI::App& app) {
   std::string methods;
   for (const auto& m : method::method_names()) methods += (methods.empty() ? "" : ", ") + m;
   cmd->add_option("--method,-m", o->method, methods + "; with a preset name, that method's preset (bi-fast, ...)");
-  cmd->add_option("--minutes", o->minutes, "stop after this much training time (a checkpoint is written)");
+  cmd->add_option("--minutes", o->minutes, "stop after this much training time (a checkpoint is written)")
+      ->check(number_in(0, 1e7));
   cmd->add_option("--out,-o", o->out, "run folder: config.json, log.jsonl, checkpoint.relit")->required();
   cmd->add_option("--steps", o->steps, "train until this step (default: the config's training.steps)")
-      ->check(at_least(0));
-  cmd->add_option("--seed", o->seed, "training seed (default: the config's training.seed)");
+      ->check(integer_in(0, 1000000000000LL));
+  cmd->add_option("--seed", o->seed, "training seed (default: the config's training.seed)")
+      ->check(integer_in(0, 4294967295LL));
   cmd->add_flag("--resume", o->resume, "continue the run in --out from its checkpoint");
-  cmd->add_option("--profile", o->profile, "time each stage over this many steps, print it and exit (nothing written)");
+  cmd->add_option("--profile", o->profile, "time each stage over this many steps, print it and exit (nothing written)")
+      ->check(integer_in(1, 100000));
   cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
   cmd->final_callback([o] {
     if (const int code = run_train(*o)) throw CLI::RuntimeError(code);

@@ -27,6 +27,16 @@ std::string ProgressBar::si(double v) {
   return buf;
 }
 
+std::string ProgressBar::rate(double per_second, const std::string& unit) {
+  if (!(per_second > 0) || !std::isfinite(per_second)) return "- " + unit + "/s";
+  if (per_second >= 1) return si(per_second) + " " + unit + "/s";
+  // Slow work (a view that takes 40 s) reads as seconds per item, not "0 views/s".
+  const std::string one = unit.size() > 1 && unit.back() == 's' ? unit.substr(0, unit.size() - 1) : unit;
+  char buf[32];
+  std::snprintf(buf, sizeof buf, 1 / per_second < 10 ? "%.2f" : "%.1f", 1 / per_second);
+  return std::string(buf) + " s/" + one;
+}
+
 std::string ProgressBar::clock(double s) {
   if (!std::isfinite(s) || s < 0) return "?";
   const long t = std::lround(s);
@@ -52,7 +62,7 @@ bool ProgressBar::operator()(const Progress& p) {
   }
   char pct[16];
   std::snprintf(pct, sizeof pct, "%5.1f%%", 100.0 * f);
-  line << pct << "  " << si(p.rate) << " " << p.unit << "/s  elapsed " << clock(p.elapsed) << "  ETA "
+  line << pct << "  " << rate(p.rate, p.unit) << "  elapsed " << clock(p.elapsed) << "  ETA "
        << (p.rate > 0 ? clock(p.eta) : std::string("?"));
   if (!p.message.empty()) line << "  " << p.message;
   if (m_tty) {

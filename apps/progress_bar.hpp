@@ -23,6 +23,8 @@ class ProgressBar {
   static std::string si(double value);
   /// "1:02:03", "4:05": seconds as h:mm:ss or m:ss.
   static std::string clock(double seconds);
+  /// "12.3k samples/s", or below one per second "4.20 s/view" (the unit's plural 's' dropped).
+  static std::string rate(double per_second, const std::string& unit);
 
  private:
   std::string m_label;

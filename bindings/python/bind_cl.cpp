@@ -9,7 +9,10 @@
 
 #include <relit/relit.hpp>
 
+#include <filesystem>
 #include <iostream>
+#include <new>
+#include <stdexcept>
 
 namespace py = pybind11;
 
@@ -72,6 +75,21 @@ void translate(std::exception_ptr p) {
     PyErr_SetString(c.io, e.what());
   } catch (const relit::Error& e) {
     PyErr_SetString(c.error, e.what());
+  } catch (const py::builtin_exception&) {
+    throw;  // pybind11's own (TypeError of a conversion, IndexError, ...): its translator sets them
+  } catch (const py::error_already_set&) {
+    throw;  // a Python exception passing through (KeyboardInterrupt in a progress callback, ...)
+  } catch (const std::filesystem::filesystem_error& e) {
+    // The error boundary of the binding: nothing else escapes as a bare RuntimeError or an abort.
+    PyErr_SetString(c.io, (e.code().message() + ": '" + e.path1().string() + "'").c_str());
+  } catch (const nlohmann::json::exception& e) {
+    PyErr_SetString(c.config, (std::string("malformed JSON value: ") + e.what()).c_str());
+  } catch (const std::bad_alloc&) {
+    PyErr_SetString(c.invalid, "out of host memory: the sizes asked for are too large");
+  } catch (const std::length_error& e) {
+    PyErr_SetString(c.invalid, (std::string("a size is too large: ") + e.what()).c_str());
+  } catch (const std::exception& e) {
+    PyErr_SetString(c.error, (std::string(e.what()) + " (an unexpected error: please report it)").c_str());
   }
 }
 

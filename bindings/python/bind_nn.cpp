@@ -23,13 +23,7 @@ namespace {
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
 Json to_json(const py::object& config) {
-  if (py::isinstance<py::str>(config)) {
-    try {
-      return Json::parse(config.cast<std::string>());
-    } catch (const Json::parse_error& e) {
-      throw ConfigError("", std::string("config is not valid JSON: ") + e.what());
-    }
-  }
+  if (py::isinstance<py::str>(config)) return parse_json(config.cast<std::string>(), "the config string");
   return json_from_python(config);
 }
 

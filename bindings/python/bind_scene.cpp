@@ -80,7 +80,8 @@ void bind_scene(py::module_& m) {
       .def_static(
           "from_json",
           [](const py::object& obj, const std::string& base_dir) {
-            const Json j = py::isinstance<py::str>(obj) ? Json::parse(obj.cast<std::string>()) : json_from_python(obj);
+            const Json j = py::isinstance<py::str>(obj) ? parse_json(obj.cast<std::string>(), "the scene string")
+                                                        : json_from_python(obj);
             py::gil_scoped_release release;
             return Scene::from_json(j, base_dir);
           },

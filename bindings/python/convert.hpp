@@ -11,7 +11,14 @@ namespace relit::python {
 
 /// A Python value (dict, list, number, ...) as JSON, through Python's json module, which knows every builtin type.
 inline Json json_from_python(const pybind11::handle& obj) {
-  return Json::parse(pybind11::module_::import("json").attr("dumps")(obj).cast<std::string>());
+  std::string text;
+  try {
+    text = pybind11::module_::import("json").attr("dumps")(obj, pybind11::arg("allow_nan") = false).cast<std::string>();
+  } catch (const pybind11::error_already_set& e) {
+    // Not JSON-representable: NaN or infinity, a set, an object... Say which, as a relit.ConfigError.
+    throw ConfigError("", std::string("the value cannot be written as JSON: ") + e.what());
+  }
+  return parse_json(text, "the value");
 }
 
 /// JSON as the Python value json.loads would give.

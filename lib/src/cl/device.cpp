@@ -7,7 +7,10 @@
 #include <relit/error.hpp>
 #include <relit/log.hpp>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <filesystem>
 #include <cctype>
 #include <chrono>
 #include <cstdlib>
@@ -41,6 +44,9 @@ bool is_index(const std::string& s) {
   return !s.empty() && std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::isdigit(c); });
 }
 
+// The value of an index selector; one too large for any machine (99999999999999999999) matches nothing.
+long long index_value(const std::string& s) { return s.size() > 9 ? -1 : std::stoll(s); }
+
 template <cl_device_info Name, class T>
 T device_query(const cl::Device& d, const char* what) {
   T value{};
@@ -65,10 +71,28 @@ struct Enumerated {
   cl::Device device;
 };
 
+// PoCL refuses to start when its kernel cache folder cannot be written, and the ICD loader then reports no
+// platform at all: name the real cause instead of asking for a driver that is installed.
+std::string no_platform_message() {
+  for (const char* var : {"POCL_CACHE_DIR", "XDG_CACHE_HOME"}) {
+    const char* dir = std::getenv(var);
+    if (!dir || !*dir) continue;
+    std::error_code ec;
+    const bool exists = std::filesystem::exists(dir, ec);
+    if (!exists || !std::filesystem::is_directory(dir, ec) || ::access(dir, W_OK | X_OK) != 0)
+      return std::string("no OpenCL platform could start: ") + var + "='" + dir + "' " +
+             (exists ? "is not a writable folder" : "does not exist") +
+             ", and the PoCL driver needs it for its kernel cache. Point " + var +
+             " at a writable folder (or unset it). If that is not the cause: " + kNoPlatformHelp;
+  }
+  return kNoPlatformHelp;
+}
+
 std::vector<Enumerated> enumerate() {
   std::vector<cl::Platform> platforms;
   const cl_int status = cl::Platform::get(&platforms);
-  if (status == kPlatformNotFound || (status == CL_SUCCESS && platforms.empty())) throw DeviceError(kNoPlatformHelp);
+  if (status == kPlatformNotFound || (status == CL_SUCCESS && platforms.empty()))
+    throw DeviceError(no_platform_message());
   RELIT_CL_CHECK_CODE(status, "clGetPlatformIDs");
 
   std::vector<Enumerated> out;
@@ -135,14 +159,14 @@ std::string device_haystack(const DeviceInfo& i) { return lower(i.name + " " + i
 
 bool matches_part(const std::string& part, int index, const std::string& haystack) {
   if (part.empty()) return true;
-  if (is_index(part)) return std::stoi(part) == index;
+  if (is_index(part)) return index_value(part) == index;
   return haystack.find(lower(part)) != std::string::npos;
 }
 
 bool matches(const std::string& selector, const DeviceInfo& info) {
   const std::string s = trim(selector);
   if (s.empty() || lower(s) == "all") return true;
-  if (is_index(s)) return std::stoi(s) == info.index;
+  if (is_index(s)) return index_value(s) == info.index;
   if (const auto colon = s.find(':'); colon != std::string::npos) {
     return matches_part(trim(s.substr(0, colon)), info.platform_index, platform_haystack(info)) &&
            matches_part(trim(s.substr(colon + 1)), info.device_index, device_haystack(info));

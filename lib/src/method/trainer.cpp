@@ -9,10 +9,16 @@
 #include <relit/metrics.hpp>
 #include <relit/nn/registry.hpp>
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 namespace fs = std::filesystem;
 
@@ -165,7 +171,8 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
 }
 
 void Trainer::set_output(const std::string& dir) {
-  fs::create_directories(dir);
+  io::create_directories(dir, "run folder");
+  io::remove_stale_temporaries(dir);
   m_out = dir;
   io::write_file_atomic((fs::path(dir) / "config.json").string(), m_config.dump(2) + "\n");
 }
@@ -238,15 +245,53 @@ double Trainer::validate() {
   return m_val_psnr;
 }
 
-void Trainer::write_log(const TrainStats& s) const {
+void Trainer::write_log(const TrainStats& s) {
   if (m_out.empty()) return;
   Json line{{"step", s.step},        {"loss", s.loss},       {"visibility_loss", s.visibility_loss},
             {"lr", s.learning_rate}, {"skipped", s.skipped}, {"steps_per_second", s.steps_per_second},
             {"elapsed", s.elapsed}};
   if (!std::isnan(s.val_psnr)) line["val_psnr"] = s.val_psnr;
-  std::ofstream out(fs::path(m_out) / "log.jsonl", std::ios::app);
-  out << line.dump() << "\n";
-  if (!out) throw IOError("cannot append to " + (fs::path(m_out) / "log.jsonl").string());
+  m_pending_log += line.dump() + "\n";
+}
+
+// Appends the pending lines (their steps are now in the checkpoint): one write, then fsync. A kill in
+// between can at worst tear the last line, which trim_log() drops on resume.
+void Trainer::flush_log() {
+  if (m_out.empty() || m_pending_log.empty()) return;
+  const std::string path = (fs::path(m_out) / "log.jsonl").string();
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  bool ok = fd >= 0;
+  int err = errno;
+  for (std::size_t done = 0; ok && done < m_pending_log.size();) {
+    const ssize_t n = ::write(fd, m_pending_log.data() + done, m_pending_log.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    ok = n > 0;
+    err = errno;
+    if (ok) done += std::size_t(n);
+  }
+  if (ok && ::fsync(fd) != 0) ok = false, err = errno;
+  if (fd >= 0) ::close(fd);
+  if (!ok) throw IOError("cannot append to '" + path + "': " + std::strerror(err));
+  m_pending_log.clear();
+}
+
+// Keeps the log lines of steps up to `last_step` that parse, rewriting log.jsonl atomically when any go.
+void Trainer::trim_log(std::uint64_t last_step) const {
+  const std::string path = (fs::path(m_out) / "log.jsonl").string();
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return;
+  std::istringstream in(io::read_file(path));
+  std::string line, kept;
+  bool dropped = false;
+  while (std::getline(in, line)) {
+    const Json j = Json::parse(line, nullptr, /*allow_exceptions=*/false);
+    if (j.is_object() && j.contains("step") && j["step"].is_number_unsigned() &&
+        j["step"].get<std::uint64_t>() <= last_step && !in.eof())
+      kept += line + "\n";
+    else
+      dropped = true;
+  }
+  if (dropped) io::write_file_atomic(path, kept);
 }
 
 TrainStats Trainer::run_until(std::uint64_t target, const TrainCallback& callback) {
@@ -276,14 +321,19 @@ TrainStats Trainer::run_until(std::uint64_t target, const TrainCallback& callbac
       validate();
       validated = true;
     }
-    if (!m_out.empty() && m_settings.checkpoint_every && m_step % m_settings.checkpoint_every == 0 && !last)
-      save_checkpoint((fs::path(m_out) / "checkpoint.relit").string());
     if (m_step % m_settings.log_every == 0 || last || validated) {
       if (!report()) break;
     }
+    if (!m_out.empty() && m_settings.checkpoint_every && m_step % m_settings.checkpoint_every == 0 && !last) {
+      save_checkpoint((fs::path(m_out) / "checkpoint.relit").string());
+      flush_log();
+    }
   }
-  if (!m_out.empty()) save_checkpoint((fs::path(m_out) / "checkpoint.relit").string());
   if (m_step == first) report();
+  if (!m_out.empty()) {
+    save_checkpoint((fs::path(m_out) / "checkpoint.relit").string());
+    flush_log();
+  }
   return st;
 }
 
@@ -315,7 +365,10 @@ void Trainer::save_checkpoint(const std::string& path) const {
 
 void Trainer::load_checkpoint(const std::string& path) {
   const io::Checkpoint c = io::load_checkpoint(path);
-  Json theirs = c.header.value("config", Json());
+  if (!c.header.contains("step") || !c.header["step"].is_number_unsigned() || !c.header.contains("config") ||
+      !c.header["config"].is_object())
+    throw IOError(path + ": not a relit run checkpoint (its header lacks the step and the config)");
+  Json theirs = c.header["config"];
   Json ours = m_config;
   theirs.erase("dataset");
   ours.erase("dataset");
@@ -336,6 +389,8 @@ void Trainer::load_checkpoint(const std::string& path) {
   m_skipped.fill(sk == c.tensors.end() ? 0u : static_cast<std::uint32_t>(sk->second.at(0)));
   const Json& v = c.header.value("val_psnr", Json());
   m_val_psnr = v.is_number() ? v.get<double>() : std::numeric_limits<double>::quiet_NaN();
+  m_pending_log.clear();
+  if (!m_out.empty()) trim_log(m_step);
 }
 
 }  // namespace relit::method

@@ -47,12 +47,25 @@ std::unique_ptr<Optimizer> create_optimizer(const Json& json, const std::string&
   return optimizers().create(json, pointer);
 }
 
+namespace {
+// Dimensions beyond any real model (2^31 would overflow the parameter and workspace sizes).
+constexpr std::uint32_t kMaxDims = 4096;
+void check_dims(const char* what, std::uint32_t n) {
+  if (n > kMaxDims)
+    throw InvalidArgument(std::string(what) + " must be at most " + std::to_string(kMaxDims) + ", got " +
+                          std::to_string(n));
+}
+}  // namespace
+
 std::unique_ptr<Encoding> create_encoding(const Json& json, std::uint32_t n_input_dims, const std::string& pointer) {
+  check_dims("n_input_dims", n_input_dims);
   return encodings().create(json, pointer, n_input_dims);
 }
 
 std::unique_ptr<Network> create_network(const Json& json, std::uint32_t n_input_dims, std::uint32_t n_output_dims,
                                         const std::string& pointer) {
+  check_dims("n_input_dims", n_input_dims);
+  check_dims("n_output_dims", n_output_dims);
   return networks().create(json, pointer, n_input_dims, n_output_dims);
 }
 

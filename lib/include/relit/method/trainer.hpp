@@ -68,8 +68,10 @@ class Trainer {
   /// (a run config; unknown keys and bad values are ConfigErrors).
   Trainer(const Device& device, const std::string& dataset_dir, const Json& config);
 
-  /// Writes `dir`/config.json (the resolved config) now, and log.jsonl lines and checkpoints
-  /// (`dir`/checkpoint.relit, the latest) as training goes. Creates `dir`.
+  /// Writes `dir`/config.json (the resolved config) now, and checkpoints (`dir`/checkpoint.relit, the latest)
+  /// and log.jsonl lines as training goes. Log lines are appended only after the checkpoint that holds their
+  /// step is written, so the log never records steps the checkpoint lacks. Creates `dir`; removes the
+  /// temporaries that killed runs left in it.
   void set_output(const std::string& dir);
 
   /// One training step (enqueued only).
@@ -90,7 +92,8 @@ class Trainer {
 
   void save_checkpoint(const std::string& path) const;
   /// Restores parameters, optimiser state, density grid and step from a checkpoint of the same config;
-  /// training then continues exactly as if it had not stopped.
+  /// training then continues exactly as if it had not stopped. With an output folder set, lines of its
+  /// log.jsonl past the checkpoint's step (or torn by a kill) are dropped.
   void load_checkpoint(const std::string& path);
 
   std::uint64_t steps() const { return m_step; }
@@ -100,7 +103,9 @@ class Trainer {
   const Model& model() const { return *m_model; }
 
  private:
-  void write_log(const TrainStats& s) const;
+  void write_log(const TrainStats& s);
+  void flush_log();
+  void trim_log(std::uint64_t last_step) const;
   Device m_device;
   Json m_config;
   TrainingSettings m_settings;
@@ -111,6 +116,7 @@ class Trainer {
   std::unique_ptr<render::EnvironmentSamples> m_env;  // 'env+point' datasets: the training step's N_e directions
   DatasetSplit m_val;
   std::string m_out;
+  std::string m_pending_log;  // log.jsonl lines of steps not yet in a checkpoint
   std::unique_ptr<ModelPass> m_pass;
   std::vector<Buffer<float>> m_d_colors;  // dL/dcolour per colour of the model (rows)
   Buffer<float> m_ray_buf, m_targets, m_loss_value, m_aux_loss_value, m_vis_loss_value, m_guard;
