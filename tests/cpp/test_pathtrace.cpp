@@ -1,5 +1,6 @@
 // The reference path tracer against known answers: HG and environment sampling (pdf = value, chi-square),
 // transmittance (ratio and delta tracking vs exp(-int sigma)), single scattering vs numerical integration,
+// multiple scattering at albedo < 1 (where Russian roulette fires) vs an independent analog random walk,
 // the white furnace, determinism. Tolerances come from the sample variance (5-6 sigma) plus stated
 // quadrature/float allowances; the seeds are fixed, so the tests are deterministic.
 #include "test_support.hpp"
@@ -317,6 +318,137 @@ TEST(PathTraceRender, SingleScatteringMatchesNumericalIntegration) {
       if (c == 0) total += e;
     }
   EXPECT_GT(total, 0.5) << "the reference image must not be black";
+}
+
+namespace {
+
+// An analog random walk in double through a homogeneous cube [-1, 1]^3 (extinction sigma, grey albedo a, HG g),
+// written from the radiative transfer equation without any of the kernel's estimators: free paths drawn from
+// exp(-sigma t) in closed form, absorption as an event of probability 1 - a (no throughput weights, no
+// Russian roulette), HG directions by the textbook inverse CDF around the direction of travel, point lights
+// by next-event estimation with the closed-form transmittance exp(-sigma * length inside the cube), the
+// uniform environment only by escaping paths (no environment sampling, no MIS).
+struct AnalogWalk {
+  double sigma, albedo, g;
+  std::array<double, 3> light_pos;
+  double light_intensity, env_radiance;
+
+  struct Result {
+    double radiance;  // the path's estimate
+    double multiple;  // the part of it gathered at the third scattering event or later
+  };
+
+  // A unit vector at cosine mu from unit d, azimuth phi.
+  static std::array<double, 3> turn(const std::array<double, 3>& d, double mu, double phi) {
+    std::array<double, 3> t =
+        std::abs(d[0]) < 0.9 ? std::array<double, 3>{0, -d[2], d[1]} : std::array<double, 3>{d[2], 0, -d[0]};
+    const double tl = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    for (auto& v : t) v /= tl;
+    const std::array<double, 3> b = {d[1] * t[2] - d[2] * t[1], d[2] * t[0] - d[0] * t[2], d[0] * t[1] - d[1] * t[0]};
+    const double st = std::sqrt(std::max(0.0, 1 - mu * mu));
+    std::array<double, 3> out;
+    for (int a = 0; a < 3; ++a) out[a] = st * std::cos(phi) * t[a] + st * std::sin(phi) * b[a] + mu * d[a];
+    return out;
+  }
+
+  Result trace(std::array<double, 3> o, std::array<double, 3> d, std::mt19937_64& rng) const {
+    std::uniform_real_distribution<double> u(0, 1);
+    Result r{0, 0};
+    for (int collisions = 0;; ++collisions) {
+      double t0, t1;
+      if (!box_hit(o.data(), d.data(), t0, t1)) {  // (only the camera ray can miss; the environment is hidden)
+        if (collisions > 0) r.radiance += env_radiance;
+        break;
+      }
+      const double t = std::max(t0, 0.0) - std::log(1 - u(rng)) / sigma;
+      if (t >= t1) {  // escaped: the environment's radiance (a hidden background for the camera ray)
+        if (collisions > 0) r.radiance += env_radiance, r.multiple += collisions >= 3 ? env_radiance : 0;
+        break;
+      }
+      const std::array<double, 3> x = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+      // The collision scatters with probability a: next-event estimation carries the factor a, and the walk
+      // goes on with probability a.
+      std::array<double, 3> wl = {light_pos[0] - x[0], light_pos[1] - x[1], light_pos[2] - x[2]};
+      const double dist = std::sqrt(wl[0] * wl[0] + wl[1] * wl[1] + wl[2] * wl[2]);
+      for (auto& v : wl) v /= dist;
+      double l0, l1;
+      box_hit(x.data(), wl.data(), l0, l1);
+      const double cos_owl = -(d[0] * wl[0] + d[1] * wl[1] + d[2] * wl[2]);
+      const double direct = albedo * hg(cos_owl, g) * std::exp(-sigma * l1) * light_intensity / (dist * dist);
+      r.radiance += direct;
+      if (collisions + 1 >= 3) r.multiple += direct;
+      if (u(rng) >= albedo) break;  // absorbed
+      // HG: the cosine between the old and the new direction of travel.
+      const double v = u(rng);
+      const double mu =
+          std::abs(g) < 1e-6 ? 1 - 2 * v : (1 + g * g - std::pow((1 - g * g) / (1 - g + 2 * g * v), 2)) / (2 * g);
+      d = turn(d, std::clamp(mu, -1.0, 1.0), 2 * kPi * u(rng));
+      o = x;
+    }
+    return r;
+  }
+};
+
+}  // namespace
+
+// Multiple scattering at albedo < 1, where the path tracer's Russian roulette fires (from the third vertex
+// on, with survival probability max(throughput) = a^k < 1): relit's path tracer against the analog walk
+// above in a homogeneous cube of optical thickness 4 under a point light and a uniform environment. A
+// roulette that forgot to divide by its survival probability, or a wrong albedo factor, transmittance or HG
+// sampling, changes the image by many standard errors (z-tests with the variances of both sides).
+TEST(PathTraceRender, MultipleScatteringBelowAlbedoOneMatchesAnAnalogWalk) {
+  const Device dev = test::test_device();
+  const int res = 4;  // pixels per side
+  const double sigma = 2.0, env = 0.3, intensity = 25;
+  const std::array<double, 3> light = {1.6, -2.4, 2.2};
+  struct Case {
+    double albedo, g;
+  };
+  for (const Case c : {Case{0.8, 0.0}, Case{0.95, 0.0}, Case{0.8, 0.6}, Case{0.95, 0.6}}) {
+    Json j = {
+        {"medium",
+         {{"source", {{"type", "constant"}, {"resolution", 4}, {"value", 1.0}}},
+          {"density_scale", sigma},
+          {"albedo", c.albedo},
+          {"g", c.g}}},
+        {"lights", {{{"position", light}, {"intensity", intensity}}}},
+        {"environment", {{"radiance", {env, env, env}}, {"visible", false}}},
+        {"cameras", {{{"position", {0.4, -4.0, 0.7}}, {"camera_angle_x", 0.4}, {"width", res}, {"height", res}}}}};
+    const Scene scene = Scene::from_json(j);
+    const Camera& cam = scene.cameras[0];
+    PathTraceSettings rs;
+    rs.spp = 4096;
+    rs.seed = 17;
+    const RenderResult r = PathTracer(dev, scene).render(cam, scene.lights, rs);
+
+    const AnalogWalk walk{sigma, c.albedo, c.g, light, intensity, env};
+    std::mt19937_64 rng(99);
+    std::uniform_real_distribution<double> u(0, 1);
+    const int paths = 12000;
+    const Float3 eye = cam.position();
+    double sum_r = 0, var_r = 0, sum_h = 0, var_h = 0, multiple = 0, worst = 0;
+    for (int p = 0; p < res * res; ++p) {
+      double s = 0, s2 = 0;
+      for (int k = 0; k < paths; ++k) {
+        const Float3 d = cam.direction(p % res + u(rng), p / res + u(rng));
+        const auto w = walk.trace({eye[0], eye[1], eye[2]}, {d[0], d[1], d[2]}, rng);
+        s += w.radiance, s2 += w.radiance * w.radiance, multiple += w.multiple;
+      }
+      const double mean_h = s / paths, se2_h = std::max(s2 / paths - mean_h * mean_h, 0.0) / (paths - 1);
+      const double mean_r = r.image.pixels[p * 4], se2_r = r.variance.pixels[p * 4] / rs.spp;
+      const double z = (mean_r - mean_h) / std::sqrt(se2_r + se2_h);
+      worst = std::max(worst, std::abs(z));
+      EXPECT_LT(std::abs(z), 5.0) << "albedo " << c.albedo << ", g " << c.g << ", pixel " << p << ": relit " << mean_r
+                                  << ", analog walk " << mean_h;
+      sum_r += mean_r, var_r += se2_r, sum_h += mean_h, var_h += se2_h;
+    }
+    const double z_mean = (sum_r - sum_h) / std::sqrt(var_r + var_h);
+    std::cout << "[ analog   ] albedo " << c.albedo << ", g " << c.g << ": image mean relit " << sum_r / (res * res)
+              << ", analog walk " << sum_h / (res * res) << ", z = " << z_mean << ", worst pixel |z| = " << worst
+              << ", share from the 3rd scattering on " << multiple / paths / sum_h << "\n";
+    EXPECT_LT(std::abs(z_mean), 4.0) << "albedo " << c.albedo << ", g " << c.g << ": image means differ";
+    EXPECT_GT(multiple / paths / sum_h, 0.15) << "the test needs paths long enough for the roulette to matter";
+  }
 }
 
 TEST(PathTraceRender, SameSeedSameImageWhateverTheTilingOtherSeedsDiffer) {
