@@ -38,7 +38,7 @@ if ((${#missing[@]})); then
 fi
 
 # A virtual environment keeps the Python tools away from the system's packages (PEP 668).
-python_tools=(numpy pytest scikit-build-core pybind11 scikit-image matplotlib)
+python_tools=(numpy pytest scikit-build-core pybind11 scikit-image matplotlib mitsuba)
 if [ ! -x "$venv/bin/python" ]; then
   echo "setup: creating Python virtual environment $venv"
   python3 -m venv "$venv"

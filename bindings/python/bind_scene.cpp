@@ -93,6 +93,17 @@ void bind_scene(py::module_& m) {
       .def_readwrite("cameras", &Scene::cameras)
       .def_readwrite("lights", &Scene::lights)
       .def_property_readonly("has_medium", [](const Scene& s) { return s.medium.has_value(); })
+      .def_property_readonly(
+          "medium_density",
+          [](const Scene& s) -> py::object {
+            if (!s.medium) return py::none();
+            const Grid& g = s.medium->density;
+            py::array_t<float> a({g.nz, g.ny, g.nx});
+            std::copy(g.values.begin(), g.values.end(), a.mutable_data());
+            return std::move(a);
+          },
+          "the medium's density grid (before density_scale) as float32 (nz, ny, nx), voxel-centred over the box\n"
+          "[-1, 1]^3, x fastest; None without a medium")
       .def_property_readonly("has_solid", [](const Scene& s) { return s.solid.has_value(); })
       .def_property_readonly("has_environment", [](const Scene& s) { return s.environment.has_value(); });
 

@@ -1,9 +1,12 @@
-// The HashGrid encoding against a double-precision host reference: forward, parameter gradient (order
-// independence, determinism, padding rows, accumulation), input gradient by finite differences, and a small
-// fitting run that trains the grid alone (linear readout) to reproduce an image.
+// The HashGrid encoding against values computed by hand (instant-ngp's level layout, table indices) and a
+// double-precision host reference: forward, parameter gradient (order independence, determinism, padding
+// rows, accumulation), input gradient by finite differences, and a small fitting run that trains the grid
+// alone (linear readout) to reproduce an image.
 #include "enc_test_support.hpp"
 #include <relit/verify/hashgrid_reference.hpp>
 
+#include <array>
+#include <cmath>
 #include <numeric>
 
 namespace relit {
@@ -69,6 +72,111 @@ TEST(EncHashGrid, LevelLayout) {
   std::vector<float> q(enc->n_params());
   enc->initialize_params(q.data(), 7);
   EXPECT_EQ(p, q);
+}
+
+// The level layout of instant-ngp's NeRF grid (16 levels, N_min = 16, N_max = 2048, T = 2^19) against values
+// computed by hand: per_level_scale is instant-ngp's growth factor b = exp((ln N_max - ln N_min) / (L - 1)),
+// level l sits at scale N_min b^l - 1 (tiny-cuda-nn's convention; the finest is N_max - 1), has
+// ceil(scale) + 2 vertices per axis, one entry per vertex (padded to a multiple of 8) while res^3 <= T and a
+// hashed table of T entries after that, and its parameters follow the previous level's.
+TEST(EncHashGrid, LevelLayoutMatchesValuesComputedByHand) {
+  const double b = std::exp((std::log(2048.0) - std::log(16.0)) / 15);
+  EXPECT_NEAR(b, 1.3819128799677762, 1e-15);
+  auto enc = make_grid({{"type", "HashGrid"},
+                        {"n_levels", 16},
+                        {"n_features_per_level", 2},
+                        {"log2_hashmap_size", 19},
+                        {"base_resolution", 16},
+                        {"per_level_scale", b}},
+                       3);
+  struct Expected {
+    double scale;
+    std::uint32_t res, size, offset;
+    bool hashed;
+  };
+  // scale = 16 b^l - 1 with b rounded to float (1.38191283); res = ceil(scale) + 2; dense sizes res^3 rounded up
+  // to a multiple of 8 (17^3 = 4913 -> 4920); offsets: the running sum of 2 * size.
+  const Expected expected[16] = {{15.0, 17, 4920, 0, false},
+                                 {21.110605, 24, 13824, 9840, false},
+                                 {29.554930, 32, 32768, 37488, false},
+                                 {41.224247, 44, 85184, 103024, false},
+                                 {57.350231, 60, 216000, 273392, false},
+                                 {79.634933, 82, 524288, 705392, true},
+                                 {110.43045, 113, 524288, 1753968, true},
+                                 {152.98717, 155, 524288, 2802544, true},
+                                 {211.79683, 214, 524288, 3851120, true},
+                                 {293.06668, 296, 524288, 4899696, true},
+                                 {405.37452, 408, 524288, 5948272, true},
+                                 {560.57414, 563, 524288, 6996848, true},
+                                 {775.04651, 778, 524288, 8045424, true},
+                                 {1071.4287, 1074, 524288, 9094000, true},
+                                 {1481.0029, 1484, 524288, 10142576, true},
+                                 {2046.9988, 2049, 524288, 11191152, true}};
+  ASSERT_EQ(enc->levels().size(), 16u);
+  for (std::uint32_t l = 0; l < 16; ++l) {
+    const auto& got = enc->levels()[l];
+    EXPECT_NEAR(got.scale, expected[l].scale, 2e-6 * expected[l].scale) << "level " << l;
+    EXPECT_EQ(got.res, expected[l].res) << "level " << l;
+    EXPECT_EQ(got.size, expected[l].size) << "level " << l;
+    EXPECT_EQ(got.offset, expected[l].offset) << "level " << l;
+    EXPECT_EQ(got.hashed, expected[l].hashed) << "level " << l;
+  }
+  EXPECT_NEAR(enc->levels()[15].scale, 2048 - 1, 2e-3) << "the finest level must have N_max - 1 cells per axis";
+  EXPECT_EQ(enc->n_params(), 12239728u);  // 11191152 + 2 * 2^19
+  EXPECT_EQ(enc->n_output_dims(), 32u);
+}
+
+// Table indices of the device's forward pass computed by hand: every parameter zero but the two features of
+// one entry, the input placed at in-cell position (1/4, 1/4, 1/4) of a chosen cell, so that the level's output
+// is the d-linear weight of the corner that owns the entry — (3/4)^3 for the cell's first corner, (1/4)^3 for
+// the opposite one — and 0 if the kernel looked elsewhere. Dense: index = v_x + v_y res + v_z res^2; hashed:
+// (v_x * 1 XOR v_y * 2654435761 XOR v_z * 805459861) mod 2^32, masked to the table (instant-ngp's primes).
+TEST(EncHashGrid, TableIndicesMatchIndicesComputedByHand) {
+  const Device device = test::test_device();
+  // Levels 0 and 1 dense (17^3 = 4913 -> 4920 entries, 24^3 = 13824), level 2 hashed (32^3 > 2^14).
+  auto enc = make_grid({{"type", "HashGrid"},
+                        {"n_levels", 3},
+                        {"n_features_per_level", 2},
+                        {"log2_hashmap_size", 14},
+                        {"base_resolution", 16},
+                        {"per_level_scale", 1.3819128799677762}},
+                       3);
+  ASSERT_EQ(enc->n_params(), 2u * (4920 + 13824 + 16384));
+  struct Probe {
+    std::uint32_t level;
+    std::array<std::uint32_t, 3> cell;  // the cell's first corner (vertex coordinates)
+    int corner;                         // 0: the first corner, 7: the opposite one
+    std::uint32_t entry;                // its table entry, by hand
+    double weight;
+  };
+  const Probe probes[] = {
+      {0, {2, 3, 4}, 0, 2 + 3 * 17 + 4 * 289, 0.421875},  // 1209
+      {0, {2, 3, 4}, 7, 3 + 4 * 17 + 5 * 289, 0.015625},  // 1516
+      {1, {3, 5, 7}, 0, 3 + 5 * 24 + 7 * 576, 0.421875},  // 4155
+      {1, {3, 5, 7}, 7, 4 + 6 * 24 + 8 * 576, 0.015625},  // 4756
+      // (10 ^ 0x5C5581D4 ^ 0xB03A8D8D) = 0xEC6F0C53, & 0x3FFF = 0x0C53
+      {2, {10, 20, 25}, 0, 3155, 0.421875},
+      // (11 ^ 0xFA8CFB85 ^ 0xE03CE522) = 0x1AB01EAC, & 0x3FFF = 0x1EAC
+      {2, {10, 20, 25}, 7, 7852, 0.015625},
+  };
+  const std::uint32_t level_offset[3] = {0, 2 * 4920, 2 * (4920 + 13824)};
+  const double level_scale[3] = {15.0, 21.110605, 29.554930};  // 16 b^l - 1, as the layout test
+  for (const Probe& pr : probes) {
+    std::vector<float> params(enc->n_params(), 0.0f);
+    params[level_offset[pr.level] + 2 * pr.entry] = 1.0f;
+    params[level_offset[pr.level] + 2 * pr.entry + 1] = 2.0f;
+    const Buffer<float> p(device, params);
+    Matrix x(1, 3);
+    for (int d = 0; d < 3; ++d) x(0, d) = float((pr.cell[d] + 0.25 - 0.5) / level_scale[pr.level]);
+    const Matrix out = test::device_forward(device, *enc, &p, x);
+    for (std::uint32_t l = 0; l < 3; ++l)
+      for (std::uint32_t f = 0; f < 2; ++f) {
+        const double want = l == pr.level ? (f + 1) * pr.weight : 0.0;
+        EXPECT_NEAR(out(0, l * 2 + f), want, 1e-4)
+            << "level " << pr.level << ", corner " << pr.corner << " of cell (" << pr.cell[0] << ", " << pr.cell[1]
+            << ", " << pr.cell[2] << "): entry " << pr.entry << "; output of level " << l << " feature " << f;
+      }
+  }
 }
 
 TEST(EncHashGrid, ForwardMatchesReference) {

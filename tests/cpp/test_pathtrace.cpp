@@ -1,10 +1,12 @@
 // The reference path tracer against known answers: HG and environment sampling (pdf = value, chi-square),
 // transmittance (ratio and delta tracking vs exp(-int sigma)), single scattering vs numerical integration,
+// multiple scattering at albedo < 1 (where Russian roulette fires) vs an independent analog random walk,
 // the white furnace, determinism. Tolerances come from the sample variance (5-6 sigma) plus stated
 // quadrature/float allowances; the seeds are fixed, so the tests are deterministic.
 #include "test_support.hpp"
 
 #include <relit/pathtrace.hpp>
+#include <relit/render/environment.hpp>
 #include <relit/scene/procedural.hpp>
 #include <relit/verify/brdf_reference.hpp>
 
@@ -174,6 +176,117 @@ TEST(PathTraceSampling, EnvironmentSamplerPdfIsConsistentAndMatchesTheMap) {
   EXPECT_LT(chi2, bins - 1 + 6 * std::sqrt(2.0 * (bins - 1)));
 }
 
+// The environment sampler against its documented distribution computed here from the raw map, without the
+// library's tables or pdf: texel t = (x, y) is drawn with probability P_t = Y(t) sin(theta_y) / sum, Y the
+// Rec. 709 luminance 0.2126 R + 0.7152 G + 0.0722 B, theta_y = (y + 1/2) pi / h the row's centre, and is
+// uniform in (phi, theta) inside the texel, so the solid-angle pdf at d is P_t w h / (2 pi^2 sin theta(d)).
+// Checked: the pdf the sampler reports and env_pdf(d) (the path tracer's MIS weights), a chi-square of the
+// samples over half-texels (the texel probabilities and the uniformity inside a texel), and the weights
+// E / (pdf N_e) of the neural renderer's environment directions.
+TEST(PathTraceSampling, EnvironmentSamplerFollowsTheLuminanceOfTheRawMap) {
+  const Device dev = test::test_device();
+  // A map with saturated texels (the luminance weights of R, G and B differ by 10x), and the test fixture.
+  Image vivid(24, 12, 3);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.05f, 1.0f);
+  for (float& v : vivid.pixels) v = u(rng);
+  for (int x = 0; x < 24; x += 3) {  // pure red, green and blue texels in every other row
+    for (int y = 1; y < 12; y += 2)
+      for (int c = 0; c < 3; ++c) vivid.at(x + (y / 2) % 3, y, c) = c == (x / 3) % 3 ? 6.0f : 0.0f;
+  }
+  const std::pair<const char*, Image> maps[] = {
+      {"saturated texels", vivid}, {"env_small.exr", read_image(std::string(RELIT_TEST_DATA_DIR) + "/env_small.exr")}};
+  for (const auto& [name, raw] : maps) {
+    const int w = raw.width, h = raw.height;
+    std::vector<double> prob(std::size_t(w) * h);
+    double total = 0;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const double lum = 0.2126 * raw.at(x, y, 0) + 0.7152 * raw.at(x, y, 1) + 0.0722 * raw.at(x, y, 2);
+        prob[std::size_t(y) * w + x] = lum * std::sin((y + 0.5) * kPi / h);
+        total += prob[std::size_t(y) * w + x];
+      }
+    for (double& p : prob) p /= total;
+    auto texel = [&](const double d[3], int& x, int& y, double& fx, double& fy) {
+      double phi = std::atan2(d[1], d[0]);
+      if (phi < 0) phi += 2 * kPi;
+      const double px = phi / (2 * kPi) * w, py = std::acos(std::clamp(d[2], -1.0, 1.0)) / kPi * h;
+      x = std::min(int(px), w - 1), y = std::min(int(py), h - 1);
+      fx = px - x, fy = py - y;
+    };
+    auto expected_pdf = [&](const double d[3]) {
+      int x, y;
+      double fx, fy;
+      texel(d, x, y, fx, fy);
+      const double st = std::sqrt(std::max(0.0, 1 - d[2] * d[2]));
+      return prob[std::size_t(y) * w + x] * w * h / (2 * kPi * kPi * st);
+    };
+
+    const EnvironmentLight env(raw, 1.0f, false);
+    ProbeScene ps(dev, nullptr, 0, &env);
+    Kernel k = dev.kernel("pathtrace_probe.cl", "probe_env_sample");
+    const cl_uint n = 300000;
+    Buffer<cl_float4> out(dev, n);
+    Buffer<float> pdf_at(dev, n);
+    ps.set(k, n, cl_uint(23));
+    k.arg(12, out).arg(13, pdf_at).launch(n, 64);
+    const auto s = out.read();
+    const auto p = pdf_at.read();
+    std::vector<double> count(std::size_t(w) * h * 4, 0);  // half-texels: 2 x 2 per texel
+    int mismatched = 0;
+    double inv_pdf = 0;
+    for (cl_uint i = 0; i < n; ++i) {
+      const double d[3] = {s[i].s[0], s[i].s[1], s[i].s[2]};
+      const double e = expected_pdf(d);
+      // A draw on a texel border may fall on either side in float and double; those are rare.
+      if (!(std::abs(s[i].s[3] - e) <= 1e-3 * e) || !(std::abs(p[i] - e) <= 1e-3 * e)) ++mismatched;
+      inv_pdf += 1 / e;
+      int x, y;
+      double fx, fy;
+      texel(d, x, y, fx, fy);
+      count[(std::size_t(y) * w + x) * 4 + (fy >= 0.5) * 2 + (fx >= 0.5)] += 1;
+    }
+    EXPECT_LT(mismatched, int(n / 1000)) << name << ": the sampler's pdf differs from the map's luminance pdf";
+    // E[1 / pdf] over the samples is the sphere's area when the samples have that density.
+    EXPECT_NEAR(inv_pdf / n, 4 * kPi, 0.05 * 4 * kPi) << name;
+    double chi2 = 0, pooled_c = 0, pooled_e = 0;
+    int bins = 0;
+    for (std::size_t b = 0; b < count.size(); ++b) {
+      const double e = n * prob[b / 4] / 4;
+      if (e < 20) {
+        pooled_c += count[b], pooled_e += e;
+        continue;
+      }
+      chi2 += (count[b] - e) * (count[b] - e) / e;
+      ++bins;
+    }
+    if (pooled_e > 0) chi2 += (pooled_c - pooled_e) * (pooled_c - pooled_e) / pooled_e, ++bins;
+    std::cout << "[ env pdf  ] " << name << ": chi-square " << chi2 << " over " << bins << " bins, " << mismatched
+              << " pdf mismatches in " << n << ", E[1/pdf] / 4 pi = " << inv_pdf / n / (4 * kPi) << "\n";
+    ASSERT_GT(bins, 200) << name;
+    EXPECT_LT(chi2, bins - 1 + 6 * std::sqrt(2.0 * (bins - 1))) << name << ": chi-square over " << bins << " bins";
+
+    // The neural renderer's environment directions: weights E / (pdf N_e) with this pdf and the raw texel.
+    render::EnvironmentSamples samples(dev, env, 64);
+    int bad_weights = 0;
+    for (std::uint32_t it = 0; it < 20; ++it) {
+      samples.draw(2, it);
+      const auto dirs = samples.dirs().download_row_major(), weights = samples.weights().download_row_major();
+      for (std::uint32_t j = 0; j < 64; ++j) {
+        const double d[3] = {dirs[3 * j], dirs[3 * j + 1], dirs[3 * j + 2]};
+        int x, y;
+        double fx, fy;
+        texel(d, x, y, fx, fy);
+        for (int c = 0; c < 3; ++c) {
+          const double want = raw.at(x, y, c) / (expected_pdf(d) * 64);
+          if (!(std::abs(weights[3 * j + c] - want) <= 1e-3 * want + 1e-7)) ++bad_weights;
+        }
+      }
+    }
+    EXPECT_LE(bad_weights, 6) << name << ": environment weights must be E / (pdf N_e)";
+  }
+}
+
 TEST(PathTraceTransmittance, RatioAndDeltaTrackingMatchExpMinusOpticalDepth) {
   const Device dev = test::test_device();
   Kernel k = dev.kernel("pathtrace_probe.cl", "probe_transmittance");
@@ -317,6 +430,137 @@ TEST(PathTraceRender, SingleScatteringMatchesNumericalIntegration) {
       if (c == 0) total += e;
     }
   EXPECT_GT(total, 0.5) << "the reference image must not be black";
+}
+
+namespace {
+
+// An analog random walk in double through a homogeneous cube [-1, 1]^3 (extinction sigma, grey albedo a, HG g),
+// written from the radiative transfer equation without any of the kernel's estimators: free paths drawn from
+// exp(-sigma t) in closed form, absorption as an event of probability 1 - a (no throughput weights, no
+// Russian roulette), HG directions by the textbook inverse CDF around the direction of travel, point lights
+// by next-event estimation with the closed-form transmittance exp(-sigma * length inside the cube), the
+// uniform environment only by escaping paths (no environment sampling, no MIS).
+struct AnalogWalk {
+  double sigma, albedo, g;
+  std::array<double, 3> light_pos;
+  double light_intensity, env_radiance;
+
+  struct Result {
+    double radiance;  // the path's estimate
+    double multiple;  // the part of it gathered at the third scattering event or later
+  };
+
+  // A unit vector at cosine mu from unit d, azimuth phi.
+  static std::array<double, 3> turn(const std::array<double, 3>& d, double mu, double phi) {
+    std::array<double, 3> t =
+        std::abs(d[0]) < 0.9 ? std::array<double, 3>{0, -d[2], d[1]} : std::array<double, 3>{d[2], 0, -d[0]};
+    const double tl = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    for (auto& v : t) v /= tl;
+    const std::array<double, 3> b = {d[1] * t[2] - d[2] * t[1], d[2] * t[0] - d[0] * t[2], d[0] * t[1] - d[1] * t[0]};
+    const double st = std::sqrt(std::max(0.0, 1 - mu * mu));
+    std::array<double, 3> out;
+    for (int a = 0; a < 3; ++a) out[a] = st * std::cos(phi) * t[a] + st * std::sin(phi) * b[a] + mu * d[a];
+    return out;
+  }
+
+  Result trace(std::array<double, 3> o, std::array<double, 3> d, std::mt19937_64& rng) const {
+    std::uniform_real_distribution<double> u(0, 1);
+    Result r{0, 0};
+    for (int collisions = 0;; ++collisions) {
+      double t0, t1;
+      if (!box_hit(o.data(), d.data(), t0, t1)) {  // (only the camera ray can miss; the environment is hidden)
+        if (collisions > 0) r.radiance += env_radiance;
+        break;
+      }
+      const double t = std::max(t0, 0.0) - std::log(1 - u(rng)) / sigma;
+      if (t >= t1) {  // escaped: the environment's radiance (a hidden background for the camera ray)
+        if (collisions > 0) r.radiance += env_radiance, r.multiple += collisions >= 3 ? env_radiance : 0;
+        break;
+      }
+      const std::array<double, 3> x = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+      // The collision scatters with probability a: next-event estimation carries the factor a, and the walk
+      // goes on with probability a.
+      std::array<double, 3> wl = {light_pos[0] - x[0], light_pos[1] - x[1], light_pos[2] - x[2]};
+      const double dist = std::sqrt(wl[0] * wl[0] + wl[1] * wl[1] + wl[2] * wl[2]);
+      for (auto& v : wl) v /= dist;
+      double l0, l1;
+      box_hit(x.data(), wl.data(), l0, l1);
+      const double cos_owl = -(d[0] * wl[0] + d[1] * wl[1] + d[2] * wl[2]);
+      const double direct = albedo * hg(cos_owl, g) * std::exp(-sigma * l1) * light_intensity / (dist * dist);
+      r.radiance += direct;
+      if (collisions + 1 >= 3) r.multiple += direct;
+      if (u(rng) >= albedo) break;  // absorbed
+      // HG: the cosine between the old and the new direction of travel.
+      const double v = u(rng);
+      const double mu =
+          std::abs(g) < 1e-6 ? 1 - 2 * v : (1 + g * g - std::pow((1 - g * g) / (1 - g + 2 * g * v), 2)) / (2 * g);
+      d = turn(d, std::clamp(mu, -1.0, 1.0), 2 * kPi * u(rng));
+      o = x;
+    }
+    return r;
+  }
+};
+
+}  // namespace
+
+// Multiple scattering at albedo < 1, where the path tracer's Russian roulette fires (from the third vertex
+// on, with survival probability max(throughput) = a^k < 1): relit's path tracer against the analog walk
+// above in a homogeneous cube of optical thickness 4 under a point light and a uniform environment. A
+// roulette that forgot to divide by its survival probability, or a wrong albedo factor, transmittance or HG
+// sampling, changes the image by many standard errors (z-tests with the variances of both sides).
+TEST(PathTraceRender, MultipleScatteringBelowAlbedoOneMatchesAnAnalogWalk) {
+  const Device dev = test::test_device();
+  const int res = 4;  // pixels per side
+  const double sigma = 2.0, env = 0.3, intensity = 25;
+  const std::array<double, 3> light = {1.6, -2.4, 2.2};
+  struct Case {
+    double albedo, g;
+  };
+  for (const Case c : {Case{0.8, 0.0}, Case{0.95, 0.0}, Case{0.8, 0.6}, Case{0.95, 0.6}}) {
+    Json j = {
+        {"medium",
+         {{"source", {{"type", "constant"}, {"resolution", 4}, {"value", 1.0}}},
+          {"density_scale", sigma},
+          {"albedo", c.albedo},
+          {"g", c.g}}},
+        {"lights", {{{"position", light}, {"intensity", intensity}}}},
+        {"environment", {{"radiance", {env, env, env}}, {"visible", false}}},
+        {"cameras", {{{"position", {0.4, -4.0, 0.7}}, {"camera_angle_x", 0.4}, {"width", res}, {"height", res}}}}};
+    const Scene scene = Scene::from_json(j);
+    const Camera& cam = scene.cameras[0];
+    PathTraceSettings rs;
+    rs.spp = 4096;
+    rs.seed = 17;
+    const RenderResult r = PathTracer(dev, scene).render(cam, scene.lights, rs);
+
+    const AnalogWalk walk{sigma, c.albedo, c.g, light, intensity, env};
+    std::mt19937_64 rng(99);
+    std::uniform_real_distribution<double> u(0, 1);
+    const int paths = 12000;
+    const Float3 eye = cam.position();
+    double sum_r = 0, var_r = 0, sum_h = 0, var_h = 0, multiple = 0, worst = 0;
+    for (int p = 0; p < res * res; ++p) {
+      double s = 0, s2 = 0;
+      for (int k = 0; k < paths; ++k) {
+        const Float3 d = cam.direction(p % res + u(rng), p / res + u(rng));
+        const auto w = walk.trace({eye[0], eye[1], eye[2]}, {d[0], d[1], d[2]}, rng);
+        s += w.radiance, s2 += w.radiance * w.radiance, multiple += w.multiple;
+      }
+      const double mean_h = s / paths, se2_h = std::max(s2 / paths - mean_h * mean_h, 0.0) / (paths - 1);
+      const double mean_r = r.image.pixels[p * 4], se2_r = r.variance.pixels[p * 4] / rs.spp;
+      const double z = (mean_r - mean_h) / std::sqrt(se2_r + se2_h);
+      worst = std::max(worst, std::abs(z));
+      EXPECT_LT(std::abs(z), 5.0) << "albedo " << c.albedo << ", g " << c.g << ", pixel " << p << ": relit " << mean_r
+                                  << ", analog walk " << mean_h;
+      sum_r += mean_r, var_r += se2_r, sum_h += mean_h, var_h += se2_h;
+    }
+    const double z_mean = (sum_r - sum_h) / std::sqrt(var_r + var_h);
+    std::cout << "[ analog   ] albedo " << c.albedo << ", g " << c.g << ": image mean relit " << sum_r / (res * res)
+              << ", analog walk " << sum_h / (res * res) << ", z = " << z_mean << ", worst pixel |z| = " << worst
+              << ", share from the 3rd scattering on " << multiple / paths / sum_h << "\n";
+    EXPECT_LT(std::abs(z_mean), 4.0) << "albedo " << c.albedo << ", g " << c.g << ": image means differ";
+    EXPECT_GT(multiple / paths / sum_h, 0.15) << "the test needs paths long enough for the roulette to matter";
+  }
 }
 
 TEST(PathTraceRender, SameSeedSameImageWhateverTheTilingOtherSeedsDiffer) {
