@@ -1,6 +1,7 @@
 // The baselines of docs/design.md §4.5 through the Model interface: Bi et al.'s hierarchical sampling and coarse/fine
 // networks, NeRV's visibility/depth network and one-bounce indirect light; gradients against finite
 // differences, and short trainings on a tiny generated scene.
+#include "gradient_check.hpp"
 #include "test_support.hpp"
 
 #include <relit/dataset.hpp>
@@ -74,8 +75,9 @@ double weighted_colour(method::Model& model, method::ModelPass& pass, Buffer<flo
   return sum;
 }
 
-// d(sum_j w_j colour_j)/dθ of colour `which` from backward() against central differences, on the 10 largest
-// gradients and 10 random parameters of θ[lo, hi); the gradient outside [lo, hi) must be zero.
+// d(sum_j w_j colour_j)/dθ of colour `which` from backward() against central differences on θ[lo, hi)
+// (gradient_check.hpp: per-parameter tolerances from three step sizes, small gradients and their signs, and a
+// random direction); the gradient outside [lo, hi) must be zero.
 void check_gradients(method::Model& model, std::uint32_t which, std::size_t lo, std::size_t hi,
                      const render::EnvironmentSamples* env = nullptr) {
   const Device& dev = model.device();
@@ -98,50 +100,17 @@ void check_gradients(method::Model& model, std::uint32_t which, std::size_t lo, 
   for (auto& b : d) d_ptrs.push_back(&b);
   model.backward(*pass, rays, d_ptrs, training_options(env));
   const auto grads = model.grads().read();
-  auto params = model.params().read();
-  ASSERT_EQ(grads.size(), params.size());
-  double max_g = 0;
-  for (std::size_t i = lo; i < hi; ++i) max_g = std::max(max_g, double(std::fabs(grads[i])));
-  ASSERT_GT(max_g, 0.0);
-  for (std::size_t i = 0; i < grads.size(); ++i)
-    if (i < lo || i >= hi) ASSERT_EQ(grads[i], 0.0f) << "parameter " << i << " outside the checked block";
-  // The derivative along a random direction of the whole block: a small bias spread over many parameters
-  // shows here even where each parameter's own error is within the tolerance below.
-  {
-    std::vector<float> v(params.size(), 0.0f);
-    double dot = 0;
-    for (std::size_t i = lo; i < hi; ++i) v[i] = (rng() % 2 ? 1.0f : -1.0f), dot += double(v[i]) * grads[i];
-    const double h = 1e-4;  // all parameters move at once: small steps keep the model in its linear range
-    auto moved = params;
-    for (std::size_t i = lo; i < hi; ++i) moved[i] = params[i] + float(h) * v[i];
-    model.params().write(moved);
-    const double fp = weighted_colour(model, *pass, rays, n, which, w, env);
-    for (std::size_t i = lo; i < hi; ++i) moved[i] = params[i] - float(h) * v[i];
-    model.params().write(moved);
-    const double fm = weighted_colour(model, *pass, rays, n, which, w, env);
-    model.params().write(params);
-    EXPECT_NEAR(dot, (fp - fm) / (2 * h), 0.03 * std::fabs(dot) + 1e-3) << "directional derivative";
-  }
-  std::vector<std::size_t> order;
-  for (std::size_t i = lo; i < hi; ++i) order.push_back(i);
-  std::partial_sort(order.begin(), order.begin() + 10, order.end(),
-                    [&](std::size_t a, std::size_t b) { return std::fabs(grads[a]) > std::fabs(grads[b]); });
-  std::vector<std::size_t> picks(order.begin(), order.begin() + 10);
-  for (int k = 0; k < 10; ++k) picks.push_back(lo + rng() % (hi - lo));
-  for (std::size_t i : picks) {
-    const float p0 = params[i];
-    const float h = 1e-2f * std::max(1.0f, std::fabs(p0));
-    params[i] = p0 + h;
-    model.params().write(params);
-    const double fp = weighted_colour(model, *pass, rays, n, which, w, env);
-    params[i] = p0 - h;
-    model.params().write(params);
-    const double fm = weighted_colour(model, *pass, rays, n, which, w, env);
-    params[i] = p0;
-    model.params().write(params);
-    const double fd = (fp - fm) / (2.0 * h);
-    EXPECT_NEAR(grads[i], fd, 2e-2 * max_g + 2e-2 * std::fabs(fd)) << "parameter " << i;
-  }
+  const auto params = model.params().read();
+  test::GradientCheck check;
+  check.lo = check.random_lo = lo;
+  check.hi = hi;
+  test::check_gradient(
+      [&](const std::vector<float>& theta) {
+        model.params().write(theta);
+        return weighted_colour(model, *pass, rays, n, which, w, env);
+      },
+      params, grads, check);
+  model.params().write(params);
 }
 
 TEST(NeRV, EnvironmentRenderGradientMatchesFiniteDifferences) {
@@ -149,7 +118,7 @@ TEST(NeRV, EnvironmentRenderGradientMatchesFiniteDifferences) {
   const Device dev = test::test_device();
   Json config = tiny_nerv();
   config["environment"] = {{"enabled", true}, {"n_dirs", 4}, {"n_dirs_training", 4}};
-  method::NeRV model(dev, config);
+  method::NeRV model(dev, test::smooth_networks(config));
   model.initialize(6);
   model.refresh_density_grid();
   render::EnvironmentSamples env(dev, EnvironmentLight::sky(16, 8, 2, 0.5f, true), 4);
@@ -227,7 +196,7 @@ TEST(OursBrdf, RenderGradientMatchesFiniteDifferences) {
   // σ, diffuse albedo, roughness and the raw normal through the BRDF renderer, and the l_max = 1 SH head.
   const Device dev = test::test_device();
   const Json model = tiny_ours();
-  method::OursBrdf m(dev, model);
+  method::OursBrdf m(dev, test::smooth_networks(model));
   EXPECT_EQ(m.settings().renderer.scattering, "brdf");
   EXPECT_EQ(m.settings().renderer.sh_lmax, 1);
   EXPECT_EQ(m.renderer().prop_cols(), 6u + 3u * 4u + 3u);
@@ -326,7 +295,7 @@ TEST(Bi, GradientsOfBothImagesMatchFiniteDifferences) {
   // θ = [fine net | coarse net]. The fine image depends on the fine net (the sample placement is not
   // differentiated, as NeRF), the coarse image on the coarse net only.
   const Device dev = test::test_device();
-  method::NeuralReflectanceField model(dev, tiny_bi());
+  method::NeuralReflectanceField model(dev, test::smooth_networks(tiny_bi()));
   model.initialize(7);
   const std::size_t fine = model.property_network().n_params();
   EXPECT_EQ(model.n_params(), fine + model.coarse_network().n_params());
@@ -596,7 +565,7 @@ TEST(NeRV, RenderGradientMatchesFiniteDifferences) {
   // Direct light and the indirect bounce: through W (density and albedo along the ray) and the albedo and g at
   // the bounce points and at x_t (held fixed: the termination point is a constant for the render loss).
   const Device dev = test::test_device();
-  method::NeRV model(dev, tiny_nerv());
+  method::NeRV model(dev, test::smooth_networks(tiny_nerv()));
   model.initialize(5);
   model.refresh_density_grid();
   check_gradients(model, 0, 0, model.n_params());

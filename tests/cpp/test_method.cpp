@@ -1,5 +1,6 @@
 // The "Ours" model and its trainer: end-to-end gradients against finite differences, gradient isolation,
 // linearity in the light's intensity, the NaN/Inf guard, deterministic resume, presets and config errors.
+#include "gradient_check.hpp"
 #include "test_support.hpp"
 
 #include <relit/dataset.hpp>
@@ -69,9 +70,11 @@ double weighted_colour(method::Ours& model, method::MediumPass& pass, Buffer<flo
   return sum;
 }
 
-// d(sum_j w_j colour_j)/dθ from backward() against central differences, on the 12 largest gradients and 12
-// random parameters (`from`: the first parameter that may be picked at random).
-void check_gradients(method::Ours& model, const render::EnvironmentSamples* env, std::size_t from = 0) {
+// d(sum_j w_j colour_j)/dθ from backward() against central differences (gradient_check.hpp: per-parameter
+// tolerances from two step sizes, small gradients and their signs, and a random direction). `from`: the first
+// parameter that may be picked at random.
+test::GradientCheckReport check_gradients(method::Ours& model, const render::EnvironmentSamples* env,
+                                          std::size_t from = 0) {
   const Device& dev = model.device();
   TinyBatch batch(dev, model.settings().renderer.sh_lmax);
   const std::uint32_t n = batch.n;
@@ -87,34 +90,18 @@ void check_gradients(method::Ours& model, const render::EnvironmentSamples* env,
   Buffer<float> d_color(dev, w);
   model.backward(pass, rays, basis.dirs(), basis.basis(), d_color, nullptr, env);
   const auto grads = model.grads().read();
-  auto params = model.params().read();
-  ASSERT_EQ(grads.size(), params.size());
-  std::vector<std::size_t> order(params.size());
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::partial_sort(order.begin(), order.begin() + 12, order.end(),
-                    [&](std::size_t a, std::size_t b) { return std::fabs(grads[a]) > std::fabs(grads[b]); });
-  std::vector<std::size_t> picks(order.begin(), order.begin() + 12);
-  for (int k = 0; k < 12; ++k) picks.push_back(from + rng() % (params.size() - from));
-  double max_g = 0;
-  for (float g : grads) max_g = std::max(max_g, double(std::fabs(g)));
-  ASSERT_GT(max_g, 0.0);
-  int checked = 0;
-  for (std::size_t i : picks) {
-    const float p0 = params[i];
-    const float h = 1e-2f * std::max(1.0f, std::fabs(p0));
-    params[i] = p0 + h;
-    model.params().write(params);
-    const double fp = weighted_colour(model, pass, rays, n, basis, w, env);
-    params[i] = p0 - h;
-    model.params().write(params);
-    const double fm = weighted_colour(model, pass, rays, n, basis, w, env);
-    params[i] = p0;
-    model.params().write(params);
-    const double fd = (fp - fm) / (2.0 * h);
-    EXPECT_NEAR(grads[i], fd, 2e-2 * max_g + 2e-2 * std::fabs(fd)) << "parameter " << i;
-    ++checked;
-  }
-  EXPECT_EQ(checked, 24);
+  const auto params = model.params().read();
+  test::GradientCheck check;
+  check.hi = params.size();
+  check.random_lo = from;
+  const auto report = test::check_gradient(
+      [&](const std::vector<float>& theta) {
+        model.params().write(theta);
+        return weighted_colour(model, pass, rays, n, basis, w, env);
+      },
+      params, grads, check);
+  model.params().write(params);
+  return report;
 }
 
 TEST(Method, RenderGradientMatchesFiniteDifferencesEndToEnd) {
@@ -127,7 +114,7 @@ TEST(Method, RenderGradientMatchesFiniteDifferencesEndToEnd) {
     if (sh.find("visibility") != std::string::npos) config["indirect"]["visibility_input"] = true;
     if (sh.find("depth") != std::string::npos) config["indirect"]["optical_depth_input"] = 0.25;
     config["indirect"]["optical_depth_attenuation"] = sh.find("attenuation") != std::string::npos;
-    method::Ours model(dev, config);
+    method::Ours model(dev, test::smooth_networks(config));
     model.initialize(11);
     // The optical depth comes from the density grid: fill it (it stays fixed while θ is perturbed).
     if (sh.find("depth") != std::string::npos) model.refresh_density_grid();
@@ -139,7 +126,7 @@ TEST(Method, EnvironmentRenderGradientMatchesFiniteDifferences) {
   // With an environment light: S_env through the N_e visibility columns, and c_env's head (the last block of
   // θ, where the random picks are drawn from) through the SH columns it adds to.
   const Device dev = test::test_device();
-  method::Ours model(dev, tiny_env_model());
+  method::Ours model(dev, test::smooth_networks(tiny_env_model()));
   model.initialize(11);
   ASSERT_NE(model.environment_network(), nullptr);
   const EnvironmentLight sky = test_sky();
@@ -178,6 +165,51 @@ TEST(Method, GradientsAreIsolatedBothWays) {
     for (float g : model.vis_grads().read()) norm += std::fabs(g);
     EXPECT_GT(norm, 0.0);
     EXPECT_TRUE(std::isfinite(value.read()[0]));
+  }
+}
+
+// The visibility network's training gradient (visibility_step: V_ψ on the samples of the first rays, toward the
+// point light and, under an environment, toward each of its directions, against the marched targets) against
+// central differences of the loss computed on the host in double from V_ψ's outputs and the targets; the host
+// loss at ψ is the device's value.
+TEST(Method, VisibilityTrainingGradientMatchesFiniteDifferences) {
+  const Device dev = test::test_device();
+  for (const bool environment : {false, true}) {
+    SCOPED_TRACE(environment ? "point light and environment" : "point light");
+    method::Ours model(dev, test::smooth_networks(environment ? tiny_env_model() : tiny_model()));
+    model.initialize(8);
+    model.refresh_density_grid();
+    TinyBatch batch(dev);
+    const EnvironmentLight sky = test_sky();
+    render::EnvironmentSamples env(dev, sky, 4);
+    env.draw(1, 0);
+    const render::EnvironmentSamples* e = environment ? &env : nullptr;
+    if (e) e->fill_background(batch.rays, batch.n);
+    method::MediumPass pass;
+    model.forward(pass, batch.rays, batch.n, true, 3, batch.basis.dirs(), batch.basis.basis(), false, nullptr, e);
+    const auto loss = nn::create_loss({{"type", "L2"}});
+    const float weight = 0.7f;
+    Buffer<float> value(dev, 1);
+    model.visibility_step(pass, batch.rays, *loss, value, weight, nullptr, e);
+    const auto grads = model.vis_grads().read();
+    const auto psi = model.vis_params().read();
+    const double device_loss = value.read()[0];
+    auto host_loss = [&](const std::vector<float>& p) {
+      model.vis_params().write(p);
+      model.visibility_step(pass, batch.rays, *loss, value, weight, nullptr, e);
+      const auto v = pass.vis_sub.download_row_major(), t = pass.vis_target.download_row_major();
+      double sum = 0;
+      for (std::size_t i = 0; i < v.size(); ++i) sum += (double(v[i]) - t[i]) * (double(v[i]) - t[i]);
+      return weight * sum / double(v.size());
+    };
+    const double at_psi = host_loss(psi);
+    EXPECT_GT(pass.vis_sub.batch(), environment ? 16u * 3 : 16u);
+    EXPECT_NEAR(at_psi, weight * device_loss, 1e-5 * at_psi)
+        << "the host loss is not the device's (value: the unweighted mean)";
+    test::GradientCheck check;
+    check.hi = psi.size();
+    test::check_gradient(host_loss, psi, grads, check);
+    model.vis_params().write(psi);
   }
 }
 
