@@ -19,6 +19,8 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <random>
 
 namespace relit {
@@ -606,6 +608,34 @@ TEST_F(MethodTrainer, ResumeGivesTheSameParametersAsAnUninterruptedRun) {
   other["model"]["n_features"] = 5;
   method::Trainer wrong(dev, dataset(), other);
   EXPECT_THROW(wrong.load_checkpoint((out.path() / "checkpoint.relit").string()), InvalidArgument);
+}
+
+// A kill can leave log lines past the last checkpoint (an older relit) or a torn last line: resuming drops
+// them, so the log holds each step once, in order, and only steps the checkpoint has.
+TEST_F(MethodTrainer, ResumeDropsLogLinesTheCheckpointLacks) {
+  const Device dev = test::test_device();
+  test::TempDir out("run-log");
+  Json cfg = config();
+  cfg["training"]["log_every"] = 1;
+  {
+    method::Trainer t(dev, dataset(), cfg);
+    t.set_output(out.path().string());
+    t.run(4);
+  }
+  const std::string log = (out.path() / "log.jsonl").string();
+  std::string text = io::read_file(log);
+  io::write_file_atomic(log, text + "{\"step\": 99, \"loss\": 1}\n{\"step\": 5, \"lo");
+  std::ofstream(out.path() / ".checkpoint.tmp-99999999-0.relit") << "a killed write";
+  method::Trainer t(dev, dataset(), cfg);
+  t.set_output(out.path().string());
+  EXPECT_FALSE(fs::exists(out.path() / ".checkpoint.tmp-99999999-0.relit")) << "stale temporary left";
+  t.load_checkpoint((out.path() / "checkpoint.relit").string());
+  EXPECT_EQ(io::read_file(log), text);
+  t.run(2);
+  std::vector<std::uint64_t> steps;
+  std::istringstream in(io::read_file(log));
+  for (std::string line; std::getline(in, line);) steps.push_back(Json::parse(line).at("step").get<std::uint64_t>());
+  EXPECT_EQ(steps, (std::vector<std::uint64_t>{1, 2, 3, 4, 5, 6}));
 }
 
 TEST_F(MethodTrainer, TrainingLowersTheLoss) {

@@ -300,7 +300,10 @@ TrainStats Trainer::run_until(std::uint64_t target, const TrainCallback& callbac
   std::uint64_t skipped_before = stats().skipped;
   TrainStats st = stats();
   st.target = target;
-  auto report = [&]() {
+  // At a step that reports: its statistics and log line (pending), then the checkpoint if one is due with the
+  // lines flushed after it, and only then the callback, which may stop the run: whatever the callback sees
+  // is on disk, and the log never holds a step the checkpoint lacks.
+  auto measure = [&]() {
     st = stats();
     st.target = target;
     st.elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -311,7 +314,13 @@ TrainStats Trainer::run_until(std::uint64_t target, const TrainCallback& callbac
                   std::to_string(m_step) + ": the loss was not finite (NaN/Inf); parameters left unchanged");
     skipped_before = st.skipped;
     write_log(st);
-    return !callback || callback(st);
+  };
+  std::uint64_t saved_at = std::numeric_limits<std::uint64_t>::max();
+  auto checkpoint = [&]() {
+    if (m_out.empty()) return;
+    save_checkpoint((fs::path(m_out) / "checkpoint.relit").string());
+    flush_log();
+    saved_at = m_step;
   };
   while (m_step < target) {
     step();
@@ -321,19 +330,17 @@ TrainStats Trainer::run_until(std::uint64_t target, const TrainCallback& callbac
       validate();
       validated = true;
     }
-    if (m_step % m_settings.log_every == 0 || last || validated) {
-      if (!report()) break;
-    }
-    if (!m_out.empty() && m_settings.checkpoint_every && m_step % m_settings.checkpoint_every == 0 && !last) {
-      save_checkpoint((fs::path(m_out) / "checkpoint.relit").string());
-      flush_log();
-    }
+    const bool reports = m_step % m_settings.log_every == 0 || last || validated;
+    if (reports) measure();
+    if (last || (m_settings.checkpoint_every && m_step % m_settings.checkpoint_every == 0)) checkpoint();
+    if (reports && callback && !callback(st)) break;
   }
-  if (m_step == first) report();
-  if (!m_out.empty()) {
-    save_checkpoint((fs::path(m_out) / "checkpoint.relit").string());
-    flush_log();
+  if (m_step == first) {
+    measure();
+    checkpoint();
+    if (callback) callback(st);
   }
+  if (saved_at != m_step) checkpoint();  // stopped by the callback between checkpoints
   return st;
 }
 
