@@ -5,6 +5,7 @@
 
 #include <relit/cl/device.hpp>
 #include <relit/dataset.hpp>
+#include <relit/io/file.hpp>
 #include <relit/scene/scene.hpp>
 
 #include <filesystem>
@@ -29,7 +30,7 @@ int run_demo(const DemoOptions& o) {
   std::cerr << "relit demo: the default cloud, 'point' lighting, the fast preset, on " << device.info().name << "\n";
   if (!fs::exists(fs::path(dataset) / "transforms_train.json")) {
     std::cerr << "[1/3] generating the dataset (path tracing) → " << dataset << "\n";
-    fs::create_directories(fs::path(dataset).parent_path());
+    io::create_directories(fs::path(dataset).parent_path().string(), "demo data folder");
     DatasetSettings s;
     // Clean references, so that the metric measures the model rather than the path tracer's noise: against
     // 256-spp references the same model scores 1.6 dB lower (docs/method.md, "Results").

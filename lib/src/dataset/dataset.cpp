@@ -452,7 +452,9 @@ void read_transforms(const fs::path& file, const std::string& split, DatasetDesc
 
 DatasetDescription read_dataset(const std::string& dir) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw IOError("dataset folder '" + dir + "' does not exist");
+  if (!fs::is_directory(dir, ec))
+    throw IOError("dataset folder '" + dir + "' " +
+                  (fs::exists(dir, ec) ? "is a file, not a folder" : std::string("does not exist")));
   // In name order, so that nothing depends on the order the file system lists the folder in.
   std::vector<fs::path> files;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {

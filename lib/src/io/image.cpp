@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -38,7 +39,9 @@ float linear_to_srgb(float x) {
 float srgb_to_linear(float x) { return x <= 0.04045f ? x / 12.92f : std::pow((x + 0.055f) / 1.055f, 2.4f); }
 
 Image read_image(const std::string& path) {
-  if (!fs::exists(path)) throw IOError("image file '" + path + "' does not exist");
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec))
+    throw IOError("image file '" + path + "' " + (fs::exists(path, ec) ? "is not a file" : "does not exist"));
   auto in = OIIO::ImageInput::open(path);
   if (!in)
     throw IOError("cannot read image '" + path + "': " + OIIO::geterror() + " (is it a valid EXR/HDR/PNG file?)");
@@ -46,6 +49,11 @@ Image read_image(const std::string& path) {
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
     throw IOError("image '" + path + "' has an unsupported shape " + std::to_string(spec.width) + "x" +
                   std::to_string(spec.height) + "x" + std::to_string(spec.nchannels));
+  // A header may claim any size: refuse what no relit image is before allocating it.
+  if (spec.width > 65536 || spec.height > 65536 || spec.nchannels > 64 ||
+      std::uint64_t(spec.width) * spec.height * spec.nchannels > (std::uint64_t(1) << 30))
+    throw IOError("image '" + path + "' claims " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
+                  "x" + std::to_string(spec.nchannels) + " values, more than relit reads (2^30)");
   Image image(spec.width, spec.height, spec.nchannels);
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
     throw IOError("cannot read the pixels of image '" + path + "': " + in->geterror() +
