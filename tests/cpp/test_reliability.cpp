@@ -121,6 +121,17 @@ TEST(StrictJson, DuplicateKeysHugeNumbersAndTypeAliasesAreRefused) {
   EXPECT_EQ(parse_json(R"({"x": {"k": 1}, "y": {"k": 2}, "z": [{"k": 1}, {"k": 2}]})", "f")["y"]["k"], 2);
   EXPECT_NE(message_of([] { parse_json(R"([{"k": 1, "k": 2}])", "f"); }).find("appears twice"), std::string::npos);
   EXPECT_THROW(config::component_type({{"type", "HashGrid"}, {"otype", "Frequency"}}, "/enc", ""), ConfigError);
+  // A section given as anything but an object is refused at its pointer (null only where null is the default).
+  for (const Json& bad : {Json::array(), Json("x"), Json(), Json(3)}) {
+    config::Reader r(Json{{"model", bad}}, "", "run");
+    EXPECT_NE(message_of([&] {
+                r.sub("model", Json::object(), "object", "the model");
+              }).find("/model: must be a JSON object"),
+              std::string::npos)
+        << bad.dump();
+  }
+  config::Reader none(Json{{"medium", nullptr}}, "", "scene");
+  EXPECT_TRUE(none.sub("medium", Json(), "object", "a medium").is_null());
   EXPECT_EQ(config::component_type({{"type", "HashGrid"}, {"otype", "HashGrid"}}, "/enc", ""), "HashGrid");
 }
 

@@ -216,6 +216,11 @@ std::string Reader::string(const std::string& key, const std::string& def, const
 
 Json Reader::sub(const std::string& key, const Json& def, const std::string& type, const std::string& description) {
   const Json* j = find(key);
+  // An object section or component given as something else ("model": [], "training": null) is refused here,
+  // where its pointer is known; null stands for "none" only where that is the default.
+  if (j && (type == "object" || type == "component") && !j->is_object() && !(j->is_null() && def.is_null()))
+    fail(key, "must be a JSON object (" + description + "), got " +
+                  (j->is_null() ? std::string("null") : type_name(*j) + " " + j->dump().substr(0, 80)));
   const Json value = j ? *j : def;
   m_docs.push_back({key, type, def, "", description});
   m_resolved[key] = value;
