@@ -288,7 +288,7 @@ Scene Scene::load(const std::string& path) {
   Json j;
   try {
     j = Json::parse(f);
-  } catch (const Json::parse_error& e) {
+  } catch (const Json::exception& e) {  // parse_error, or out_of_range for a number like 1e999
     throw ConfigError("", "scene file '" + path + "' is not valid JSON: " + e.what());
   }
   try {
