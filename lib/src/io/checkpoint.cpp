@@ -87,19 +87,28 @@ Checkpoint load_checkpoint(const std::string& path) {
   Checkpoint ck;
   try {
     ck.header = Json::parse(data.substr(start, header_size));
-  } catch (const Json::parse_error& e) {
+  } catch (const Json::exception& e) {  // parse_error, or out_of_range for a number like 1e999
     throw bad(std::string("header is not JSON: ") + e.what());
   }
   const std::size_t blobs = start + header_size;
   if (!ck.header.contains("tensors") || !ck.header["tensors"].is_array()) throw bad("header has no tensor table");
-  for (const auto& t : ck.header["tensors"]) {
-    const std::string name = t.value("name", "");
-    const std::uint64_t count = t.value("count", std::uint64_t(0)), offset = t.value("offset", std::uint64_t(0));
-    if (name.empty() || offset > body - blobs || count * sizeof(float) > body - blobs - offset)
-      throw bad("tensor '" + name + "' lies outside the file");
-    std::vector<float> values(count);
-    std::memcpy(values.data(), data.data() + blobs + offset, count * sizeof(float));
-    ck.tensors.emplace(name, std::move(values));
+  const Json& table = ck.header["tensors"];
+  for (std::size_t i = 0; i < table.size(); ++i) {
+    const Json& t = table[i];
+    const auto field = [&](const char* key) { return t.is_object() && t.contains(key) ? &t[key] : nullptr; };
+    const Json *name = field("name"), *count = field("count"), *offset = field("offset");
+    if (!name || !name->is_string() || name->get<std::string>().empty() || !count || !count->is_number_unsigned() ||
+        !offset || !offset->is_number_unsigned())
+      throw bad("tensor table entry " + std::to_string(i) +
+                " must be {\"name\": non-empty string, \"count\": unsigned integer, \"offset\": unsigned integer}, "
+                "got " +
+                t.dump());
+    const std::uint64_t n = count->get<std::uint64_t>(), at = offset->get<std::uint64_t>();
+    if (at > body - blobs || n > (body - blobs - at) / sizeof(float))  // no overflow for forged counts
+      throw bad("tensor '" + name->get<std::string>() + "' lies outside the file");
+    std::vector<float> values(n);
+    if (n) std::memcpy(values.data(), data.data() + blobs + at, n * sizeof(float));
+    ck.tensors.emplace(name->get<std::string>(), std::move(values));
   }
   return ck;
 }
