@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -46,6 +47,12 @@ Image read_image(const std::string& path) {
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
     throw IOError("image '" + path + "' has an unsupported shape " + std::to_string(spec.width) + "x" +
                   std::to_string(spec.height) + "x" + std::to_string(spec.nchannels));
+  // A corrupt or forged header must not make relit allocate what no image of its needs.
+  constexpr std::uint64_t kMaxValues = std::uint64_t(1) << 28;  // 1 GiB of floats: 16384 x 16384 x 1, 8192^2 x 4
+  if (std::uint64_t(spec.width) * std::uint64_t(spec.height) * std::uint64_t(spec.nchannels) > kMaxValues)
+    throw IOError("image '" + path + "' claims to be " + std::to_string(spec.width) + "x" +
+                  std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) + ", more than the " +
+                  std::to_string(kMaxValues) + " values relit reads (a corrupt header?)");
   Image image(spec.width, spec.height, spec.nchannels);
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
     throw IOError("cannot read the pixels of image '" + path + "': " + in->geterror() +
