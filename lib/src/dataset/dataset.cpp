@@ -289,8 +289,20 @@ DatasetDescription read_dataset(const std::string& dir) {
     Json doc;
     try {
       doc = Json::parse(f);
+      const std::string where = "dataset file '" + entry.path().string() + "'";
       const float angle = doc.at("camera_angle_x").get<float>();
-      const int w = doc.value("w", 0), h = doc.value("h", 0);
+      if (!(angle > 0.0f && angle < 3.14159265f))
+        throw IOError(where + ": \"camera_angle_x\" must be a horizontal field of view in (0, pi) radians, got " +
+                      doc["camera_angle_x"].dump());
+      // The image size, checked before it becomes an int (1e300 would be undefined behaviour).
+      const auto size = [&](const char* key) {
+        if (!doc.contains(key)) return 0;
+        const Json& v = doc[key];
+        if (!v.is_number_unsigned() || v.get<std::uint64_t>() < 1 || v.get<std::uint64_t>() > 16384)
+          throw IOError(where + ": \"" + key + "\" must be an integer in [1, 16384] (pixels), got " + v.dump());
+        return v.get<int>();
+      };
+      const int w = size("w"), h = size("h");
       d.lighting = doc.value("lighting", "");
       d.environment = doc.value("environment", Json());
       auto& frames = d.splits[split];

@@ -40,6 +40,8 @@ float srgb_to_linear(float x) { return x <= 0.04045f ? x / 12.92f : std::pow((x 
 
 Image read_image(const std::string& path) {
   if (!fs::exists(path)) throw IOError("image file '" + path + "' does not exist");
+  // A folder, a FIFO or a device (/dev/stdin would block) is no image.
+  if (!fs::is_regular_file(path)) throw IOError("image file '" + path + "' is not a regular file");
   auto in = OIIO::ImageInput::open(path);
   if (!in)
     throw IOError("cannot read image '" + path + "': " + OIIO::geterror() + " (is it a valid EXR/HDR/PNG file?)");
