@@ -34,17 +34,21 @@ if ! printf '%s\n' "${targets[@]}" | grep -qx "$target"; then
   exit 2
 fi
 
+mkdir -p "$build"
 if [ ! -f "$build/CMakeCache.txt" ]; then
   generator=()
   command -v ninja >/dev/null && generator=(-G Ninja)
-  mkdir -p "$build"
   echo "fuzz: configuring the fuzz build in $build (clang, ASan + UBSan + libFuzzer)"
   CC=clang CXX=clang++ cmake -S "$root" -B "$build" "${generator[@]}" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ -DRELIT_BUILD_FUZZERS=ON -DRELIT_BUILD_TESTS=OFF \
     -DRELIT_BUILD_APPS=OFF -DRELIT_BUILD_PYTHON=OFF -DRELIT_BUILD_BENCH=OFF >"$build/configure.log" 2>&1 ||
     { cat "$build/configure.log"; exit 1; }
 fi
+# One build at a time: several fuzz.sh runs may start together.
+exec 9>"$build/.fuzz-build.lock"
+flock 9
 cmake --build "$build" --target "fuzz_$target" --parallel "$(nproc)"
+flock -u 9
 
 seeds="$root/tests/fuzz/corpus/$target"
 work="$build/fuzz/$target"
@@ -62,12 +66,14 @@ export RELIT_LOG="${RELIT_LOG:-warning}"
 export TMPDIR="$work/tmp"  # the targets' scratch files
 
 echo "fuzz: $target for $seconds s; seeds $seeds, new inputs in $work/corpus, log $log"
+start=$SECONDS
 set +e
 "$build/tests/fuzz/fuzz_$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
   -artifact_prefix="$work/findings/" "$@" "$work/corpus" "$seeds" </dev/null 2>&1 | tee "$log" |
   grep -E --line-buffered '(NEW|REDUCE|pulse|DONE|INITED|ERROR|SUMMARY|==ERROR|runtime error|Test unit written)'
 rc=${PIPESTATUS[0]}
 set -e
+elapsed=$((SECONDS - start))
 
 last=$(grep -E '^#[0-9]+' "$log" | tail -1 || true)
 cov=$(sed -nE 's/.* cov: ([0-9]+).*/\1/p' <<<"$last")
@@ -75,7 +81,7 @@ ft=$(sed -nE 's/.* ft: ([0-9]+).*/\1/p' <<<"$last")
 runs=$(sed -nE 's/^stat::number_of_executed_units: *([0-9]+)/\1/p' "$log" | tail -1)
 eps=$(sed -nE 's/^stat::average_exec_per_sec: *([0-9]+)/\1/p' "$log" | tail -1)
 rss=$(sed -nE 's/^stat::peak_rss_mb: *([0-9]+)/\1/p' "$log" | tail -1)
-echo "fuzz: $target: ${runs:-?} runs in $seconds s, ${eps:-?} exec/s, cov: ${cov:-?} ft: ${ft:-?}," \
+echo "fuzz: $target: ${runs:-?} runs in $elapsed s, ${eps:-?} exec/s, cov: ${cov:-?} ft: ${ft:-?}," \
   "peak RSS ${rss:-?} MB, scratch corpus $(find "$work/corpus" -type f | wc -l) inputs"
 
 if [ "$rc" -ne 0 ]; then
