@@ -57,6 +57,27 @@ TEST(Checkpoint, TruncatedCorruptAndForeignFilesAreClearErrors) {
   std::string future = good;
   future[8] = 9;  // format version 9
   EXPECT_NE(error_for(future).find("format version 9"), std::string::npos);
+  // Forged headers with a right checksum: each tensor table entry is checked before anything is allocated.
+  const auto forged = [](const std::string& header) {
+    std::string out = "RELITCKP";
+    const auto put = [&](std::uint64_t v, int n) {
+      for (int i = 0; i < n; ++i) out += static_cast<char>((v >> (8 * i)) & 0xff);
+    };
+    put(io::kCheckpointVersion, 4);
+    put(header.size(), 8);
+    out += header;
+    std::uint64_t h = 1469598103934665603ull;  // FNV-1a 64
+    for (const unsigned char c : out) h = (h ^ c) * 1099511628211ull;
+    put(h, 8);
+    return out;
+  };
+  EXPECT_NE(error_for(forged(R"({"tensors": [{"name": "a", "count": 4611686018427387904, "offset": 0}]})"))
+                .find("tensor 'a' lies outside the file"),
+            std::string::npos);
+  EXPECT_NE(error_for(forged(R"({"tensors": [{"name": "a", "count": -1, "offset": 0}]})")).find("tensor table entry 0"),
+            std::string::npos);
+  EXPECT_NE(error_for(forged(R"({"tensors": [7]})")).find("tensor table entry 0"), std::string::npos);
+  EXPECT_NE(error_for(forged(R"({"tensors": [], "x": 1e999})")).find("header is not JSON"), std::string::npos);
   try {
     io::load_checkpoint((dir.path() / "missing.relit").string());
     FAIL();
