@@ -19,6 +19,7 @@ debian_packages=(
   libopenimageio-dev openimageio-tools                            # EXR/PNG/HDR images
   libeigen3-dev libopenblas-dev                                   # host math, references, BLAS peer
   libgtest-dev libgmock-dev                                       # tests
+  clang libclang-rt-dev                                           # fuzz build: clang, libFuzzer + sanitizer runtimes
   pybind11-dev nlohmann-json3-dev libcli11-dev                    # binding, JSON, command line
   libopenvdb-dev libboost-iostreams-dev                           # OpenVDB volume import (its CMake module needs Boost.Iostreams)
   python3-dev python3-venv python3-pip                            # Python headers and venv

@@ -57,6 +57,7 @@ TEST(Checkpoint, TruncatedCorruptAndForeignFilesAreClearErrors) {
   std::string future = good;
   future[8] = 9;  // format version 9
   EXPECT_NE(error_for(future).find("format version 9"), std::string::npos);
+  // Forged headers with a right checksum: Checkpoint.ForgedHeadersWithAValidChecksumAreClearErrors.
   try {
     io::load_checkpoint((dir.path() / "missing.relit").string());
     FAIL();

@@ -62,6 +62,12 @@ TEST(Image, BadFilesGiveClearErrors) {
   } catch (const IOError& e) {
     EXPECT_NE(std::string(e.what()).find("corrupt.exr"), std::string::npos) << e.what();
   }
+  try {
+    read_image(dir.path().string());  // a folder
+    FAIL() << "no error for a folder";
+  } catch (const IOError& e) {
+    EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+  }
   EXPECT_THROW(write_image((dir.path() / "a.bmpx").string(), Image(2, 2, 3)), InvalidArgument);
   EXPECT_THROW(write_image((dir.path() / "a.exr").string(), Image()), InvalidArgument);
   EXPECT_THROW(write_image((dir.path() / "no/such/folder/a.exr").string(), Image(2, 2, 3)), IOError);

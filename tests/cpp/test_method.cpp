@@ -559,6 +559,32 @@ TEST(Method, PresetsBuildAndResolveToThemselves) {
   }
 }
 
+TEST(Method, CheckRunConfigReadsWhatTheTrainerReadsWithoutADevice) {
+  const Device dev = test::test_device();
+  for (const auto& name : method::preset_names()) {
+    SCOPED_TRACE(name);
+    const Json cfg = method::preset(name);
+    const Json resolved = method::check_run_config(cfg);
+    const std::string m = cfg.value("method", "ours");
+    EXPECT_EQ(resolved.at("method"), m);
+    EXPECT_EQ(resolved.at("model"), method::create_model(dev, m, cfg.at("model"))->hyperparams());
+    EXPECT_TRUE(resolved.at("training").contains("optimizer"));
+  }
+  const auto pointer_of = [](const Json& cfg) {
+    try {
+      method::check_run_config(cfg);
+    } catch (const ConfigError& e) {
+      return e.pointer();
+    }
+    return std::string("(accepted)");
+  };
+  EXPECT_EQ(pointer_of({{"training", {{"stepz", 1}}}}), "/training/stepz");
+  EXPECT_EQ(pointer_of({{"model", {{"renderer", {{"n_samples", 20}}}}}}), "/model/renderer/n_samples");
+  EXPECT_EQ(pointer_of({{"method", "nerv"}, {"model", {{"bounce", {{"n_dirs", 0}}}}}}), "/model/bounce/n_dirs");
+  EXPECT_EQ(pointer_of({{"colour", 1}}), "/colour");
+  EXPECT_THROW(method::check_run_config(Json::array()), ConfigError);
+}
+
 // ---- the trainer, on a tiny generated dataset ----------------------------------------------------------------
 
 class MethodTrainer : public ::testing::Test {

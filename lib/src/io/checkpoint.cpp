@@ -108,7 +108,7 @@ Checkpoint load_checkpoint(const std::string& path) {
       throw bad("tensor '" + name + "' lies outside the file");
     if (ck.tensors.count(name)) throw bad("tensor '" + name + "' appears twice in the header");
     std::vector<float> values(count);
-    std::memcpy(values.data(), data.data() + blobs + offset, count * sizeof(float));
+    if (count) std::memcpy(values.data(), data.data() + blobs + offset, count * sizeof(float));  // (null for 0)
     ck.tensors.emplace(name, std::move(values));
   }
   return ck;

@@ -26,6 +26,42 @@ std::string lower_extension(const std::string& path) {
   return ext;
 }
 
+// OpenEXR 3.1 allocates each header attribute at the size the file claims before reading it, so a corrupt file
+// of a few hundred bytes can claim gigabytes. The attributes of the first header must lie inside the file.
+void check_exr_header(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  char magic[4] = {};
+  if (!f.read(magic, 4) || std::string(magic, 4) != "\x76\x2f\x31\x01") return;  // not OpenEXR: its reader decides
+  const std::uint64_t file_size = fs::file_size(path);
+  // Headers are small: the first MiB is checked, what lies beyond is left to OpenEXR.
+  std::string head(std::size_t(std::min<std::uint64_t>(file_size, std::uint64_t(1) << 20)), '\0');
+  f.seekg(0);
+  f.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(f.gcount()));
+  std::size_t at = 8;  // magic, version
+  const auto text = [&]() -> std::string {
+    const std::size_t end = head.find('\0', at);
+    if (end == std::string::npos) return {};
+    std::string s = head.substr(at, end - at);
+    at = end + 1;
+    return s;
+  };
+  while (at < head.size()) {
+    const std::string name = text();
+    if (name.empty()) return;  // the end of the header (or of what was read)
+    const std::string type = text();
+    if (type.empty() || at + 4 > head.size()) return;
+    std::uint32_t size = 0;
+    for (int i = 0; i < 4; ++i) size |= std::uint32_t(static_cast<unsigned char>(head[at + i])) << (8 * i);
+    at += 4;
+    if (size > file_size - at)
+      throw IOError("image '" + path + "' is a corrupt OpenEXR file: header attribute '" + name + "' claims " +
+                    std::to_string(size) + " bytes at offset " + std::to_string(at) + " of a " +
+                    std::to_string(file_size) + "-byte file (truncated or corrupt)");
+    at += size;
+  }
+}
+
 bool is_float_format(const std::string& ext) { return ext == ".exr" || ext == ".hdr" || ext == ".pfm"; }
 bool is_8bit_format(const std::string& ext) { return ext == ".png" || ext == ".jpg" || ext == ".jpeg"; }
 
@@ -39,9 +75,10 @@ float linear_to_srgb(float x) {
 float srgb_to_linear(float x) { return x <= 0.04045f ? x / 12.92f : std::pow((x + 0.055f) / 1.055f, 2.4f); }
 
 Image read_image(const std::string& path) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec))
-    throw IOError("image file '" + path + "' " + (fs::exists(path, ec) ? "is not a file" : "does not exist"));
+  if (!fs::exists(path)) throw IOError("image file '" + path + "' does not exist");
+  // A folder, a FIFO or a device (/dev/stdin would block) is no image.
+  if (!fs::is_regular_file(path)) throw IOError("image file '" + path + "' is not a regular file");
+  check_exr_header(path);
   auto in = OIIO::ImageInput::open(path);
   if (!in)
     throw IOError("cannot read image '" + path + "': " + OIIO::geterror() + " (is it a valid EXR/HDR/PNG file?)");
@@ -49,11 +86,12 @@ Image read_image(const std::string& path) {
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
     throw IOError("image '" + path + "' has an unsupported shape " + std::to_string(spec.width) + "x" +
                   std::to_string(spec.height) + "x" + std::to_string(spec.nchannels));
-  // A header may claim any size: refuse what no relit image is before allocating it.
-  if (spec.width > 65536 || spec.height > 65536 || spec.nchannels > 64 ||
-      std::uint64_t(spec.width) * spec.height * spec.nchannels > (std::uint64_t(1) << 30))
-    throw IOError("image '" + path + "' claims " + std::to_string(spec.width) + "x" + std::to_string(spec.height) +
-                  "x" + std::to_string(spec.nchannels) + " values, more than relit reads (2^30)");
+  // A corrupt or forged header must not make relit allocate what no image of its needs.
+  constexpr std::uint64_t kMaxValues = std::uint64_t(1) << 28;  // 1 GiB of floats: 16384 x 16384 x 1, 8192^2 x 4
+  if (std::uint64_t(spec.width) * std::uint64_t(spec.height) * std::uint64_t(spec.nchannels) > kMaxValues)
+    throw IOError("image '" + path + "' claims to be " + std::to_string(spec.width) + "x" +
+                  std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) + ", more than the " +
+                  std::to_string(kMaxValues) + " values relit reads (a corrupt header?)");
   Image image(spec.width, spec.height, spec.nchannels);
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
     throw IOError("cannot read the pixels of image '" + path + "': " + in->geterror() +

@@ -93,4 +93,9 @@ void describe_model(const std::string& method, config::Docs& docs) {
   throw InvalidArgument("describe_model: unknown method '" + method + "'");
 }
 
+Json check_model_config(const std::string& method, const Json& config, const std::string& pointer) {
+  if (const MethodEntry* e = methods().find(method)) return e->check(config, pointer);
+  throw InvalidArgument("check_model_config: unknown method '" + method + "'");
+}
+
 }  // namespace relit::method

@@ -69,7 +69,44 @@ Json read_run_keys(config::Reader& r) {
   return r.sub("model", Json::object(), "object", "the model (the /model objects below)");
 }
 
+// The run config's "training" object: its settings, losses and optimisers; resolved into `r`.
+struct TrainingParts {
+  TrainingSettings settings;
+  std::unique_ptr<nn::Loss> loss, vis_loss;
+  std::unique_ptr<nn::Optimizer> optimizer, vis_optimizer;
+};
+
+TrainingParts read_training_section(config::Reader& r) {
+  TrainingParts t;
+  config::Reader tr(r.sub("training", Json::object(), "object", "training settings"), r.pointer("training"),
+                    "training");
+  Json loss, vis_loss, opt, vis_opt;
+  t.settings = read_training(tr, loss, vis_loss, opt, vis_opt);
+  t.loss = nn::create_loss(loss, "/training/loss");
+  t.vis_loss = nn::create_loss(vis_loss, "/training/visibility_loss");
+  t.optimizer = nn::create_optimizer(opt, "/training/optimizer");
+  t.vis_optimizer = nn::create_optimizer(vis_opt, "/training/visibility_optimizer");
+  tr.set_resolved("loss", t.loss->hyperparams());
+  tr.set_resolved("visibility_loss", t.vis_loss->hyperparams());
+  tr.set_resolved("optimizer", t.optimizer->hyperparams());
+  tr.set_resolved("visibility_optimizer", t.vis_optimizer->hyperparams());
+  tr.finish();
+  r.set_resolved("training", tr.resolved());
+  return t;
+}
+
 }  // namespace
+
+Json check_run_config(const Json& config) {
+  if (!config.is_object()) throw ConfigError("", "the run config must be a JSON object");
+  config::Reader r(config, "", "run");
+  const Json model = read_run_keys(r);
+  const std::string method = r.resolved().value("method", "ours");
+  read_training_section(r);
+  r.set_resolved("model", check_model_config(method, model, "/model"));
+  r.finish();
+  return r.resolved();
+}
 
 config::Docs run_config_docs() {
   config::Docs docs;
@@ -95,22 +132,12 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
   config::Reader r(config, "", "run");
   const Json model = read_run_keys(r);
   const std::string method = r.resolved().value("method", "ours");
-  Json loss, vis_loss, opt, vis_opt;
-  {
-    config::Reader tr(r.sub("training", Json::object(), "object", "training settings"), r.pointer("training"),
-                      "training");
-    m_settings = read_training(tr, loss, vis_loss, opt, vis_opt);
-    m_loss = nn::create_loss(loss, "/training/loss");
-    m_vis_loss = nn::create_loss(vis_loss, "/training/visibility_loss");
-    m_optimizer = nn::create_optimizer(opt, "/training/optimizer");
-    m_vis_optimizer = nn::create_optimizer(vis_opt, "/training/visibility_optimizer");
-    tr.set_resolved("loss", m_loss->hyperparams());
-    tr.set_resolved("visibility_loss", m_vis_loss->hyperparams());
-    tr.set_resolved("optimizer", m_optimizer->hyperparams());
-    tr.set_resolved("visibility_optimizer", m_vis_optimizer->hyperparams());
-    tr.finish();
-    r.set_resolved("training", tr.resolved());
-  }
+  TrainingParts training = read_training_section(r);
+  m_settings = training.settings;
+  m_loss = std::move(training.loss);
+  m_vis_loss = std::move(training.vis_loss);
+  m_optimizer = std::move(training.optimizer);
+  m_vis_optimizer = std::move(training.vis_optimizer);
   const DatasetSplit train = load_split(dataset_dir, "train");
   // The model has an environment light exactly when the dataset has one; relit sets model/environment/enabled.
   Json model_config = model;

@@ -27,6 +27,9 @@ class NeuralReflectanceField : public MediumModel {
  public:
   NeuralReflectanceField(const Device& device, const Json& config, const std::string& pointer = "/model");
   static void describe(config::Docs& docs);
+  static Json check(const Json& config, const std::string& pointer) {
+    return NeuralReflectanceField().check_keys(config, pointer);
+  }
   static MethodParts method_parts() {
     MethodParts p;
     p.scattering = Scattering::hg_phase(0.0f);

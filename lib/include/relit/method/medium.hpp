@@ -206,6 +206,11 @@ class MediumModel : public Model {
   void build(const Json& config, const std::string& pointer);
   /// Every key of the model config, per JSON object (for docs/config.md).
   void describe_keys(config::Docs& docs) { configure(Json::object(), "/model", &docs); }
+  /// Reads `config` without building anything on a device (a method's static check()); the resolved config.
+  Json check_keys(const Json& config, const std::string& pointer) {
+    configure(config, pointer, nullptr);
+    return m_resolved;
+  }
 
   /// Reads the "model" object section by section, in this order; each part reads its own keys.
   void configure(const Json& config, const std::string& pointer, config::Docs* docs);

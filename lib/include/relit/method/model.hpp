@@ -149,6 +149,9 @@ struct MethodEntry {
   Factory create;
   /// Appends every key of the method's "model" config, per JSON object (pointers "/model...").
   std::function<void(config::Docs&)> describe;
+  /// Reads a "model" config (at `pointer`) as create() does, without a device: ConfigErrors for bad keys and
+  /// values; returns the resolved config.
+  std::function<Json(const Json& config, const std::string& pointer)> check;
 };
 
 /// The methods a run config may name. Each method's source adds its entries in a registration function
@@ -156,14 +159,16 @@ struct MethodEntry {
 class MethodRegistry {
  public:
   void add(MethodEntry entry);
-  /// Registers class M: constructible as M(device, config, pointer), and static M::describe(config::Docs&).
+  /// Registers class M: constructible as M(device, config, pointer), with static M::describe(config::Docs&)
+  /// and static M::check(config, pointer).
   template <class M>
   void add(const std::string& name, int rank, const std::string& summary) {
     add({name, rank, summary,
          [](const Device& device, const Json& config, const std::string& pointer) -> std::unique_ptr<Model> {
            return std::make_unique<M>(device, config, pointer);
          },
-         [](config::Docs& docs) { M::describe(docs); }});
+         [](config::Docs& docs) { M::describe(docs); },
+         [](const Json& config, const std::string& pointer) { return M::check(config, pointer); }});
   }
   /// The entry of `name`, or null.
   const MethodEntry* find(const std::string& name) const;
@@ -184,5 +189,7 @@ std::unique_ptr<Model> create_model(const Device& device, const std::string& met
                                     const std::string& pointer = "/model");
 /// Every key of method `method`'s model config (for docs/config.md).
 void describe_model(const std::string& method, config::Docs& docs);
+/// Reads method `method`'s "model" config as create_model() does, without a device; returns it resolved.
+Json check_model_config(const std::string& method, const Json& config, const std::string& pointer = "/model");
 
 }  // namespace relit::method

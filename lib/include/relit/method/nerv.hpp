@@ -44,6 +44,7 @@ class NeRV : public MediumModel {
  public:
   NeRV(const Device& device, const Json& config, const std::string& pointer = "/model");
   static void describe(config::Docs& docs);
+  static Json check(const Json& config, const std::string& pointer) { return NeRV().check_keys(config, pointer); }
   static MethodParts method_parts() {
     MethodParts p;
     p.sh_head = false;

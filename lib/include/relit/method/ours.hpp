@@ -17,6 +17,8 @@ class Ours : public MediumModel {
   Ours(const Device& device, const Json& config, const std::string& pointer = "/model");
   /// Every key of the model config, per JSON object (for docs/config.md).
   static void describe(config::Docs& docs);
+  /// Reads a model config without a device (ConfigErrors as the constructor); the resolved config.
+  static Json check(const Json& config, const std::string& pointer) { return Ours().check_keys(config, pointer); }
   static MethodParts method_parts() { return {}; }
   std::string method() const override { return "ours"; }
 
@@ -31,6 +33,7 @@ class OursBrdf : public MediumModel {
  public:
   OursBrdf(const Device& device, const Json& config, const std::string& pointer = "/model");
   static void describe(config::Docs& docs);
+  static Json check(const Json& config, const std::string& pointer) { return OursBrdf().check_keys(config, pointer); }
   static MethodParts method_parts() {
     MethodParts p;
     p.scattering = Scattering::brdf();

@@ -34,6 +34,10 @@ namespace relit::method {
 /// Every key of a run config, object by object (the "Run config" part of docs/config.md).
 config::Docs run_config_docs();
 
+/// Reads a run config as the Trainer does, without a device or a dataset: unknown keys, wrong types and bad
+/// values of "method", "model" and "training" are ConfigErrors naming the JSON pointer. Returns it resolved.
+Json check_run_config(const Json& config);
+
 /// The non-model keys of a run config's "training" object.
 struct TrainingSettings {
   std::uint32_t batch_rays = 1200;
