@@ -4,6 +4,7 @@
 //       print(stats.step, stats.loss, stats.val_psnr)
 //   img = trainer.model.render(camera, relit.PointLight((0, -3, 3), 800))   # (H, W, 3) float32, linear
 //   model = relit.Model.load("runs/cloud/checkpoint.relit")
+//   relit.export_vdb(model, "cloud.vdb", resolution=128)   # density, albedo, g for Blender, Houdini, relit
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -11,6 +12,7 @@
 #include "bindings.hpp"
 #include "convert.hpp"
 
+#include <relit/method/export.hpp>
 #include <relit/method/model_io.hpp>
 #include <relit/method/presets.hpp>
 #include <relit/method/render_image.hpp>
@@ -82,6 +84,15 @@ py::array_t<float> render(const method::Model& model, const Camera& camera, cons
   return a;
 }
 
+// A (res, res, res[, 3]) array indexed [z, y, x] of the values `v` (x fastest).
+py::array_t<float> volume(const std::vector<float>& v, int res, int channels) {
+  std::vector<py::ssize_t> shape{res, res, res};
+  if (channels > 1) shape.push_back(channels);
+  py::array_t<float> a(shape);
+  std::copy(v.begin(), v.end(), a.mutable_data());
+  return a;
+}
+
 }  // namespace
 
 void bind_method(py::module_& m) {
@@ -108,6 +119,45 @@ void bind_method(py::module_& m) {
                ", visible=" + (e.visible() ? "True" : "False") + ")";
       });
 
+  m.def(
+      "sample_medium",
+      [](const method::Model& model, int resolution) {
+        method::MediumSamples s;
+        {
+          py::gil_scoped_release release;
+          s = method::sample_medium(model, resolution);
+        }
+        py::dict d;
+        d["sigma"] = volume(s.sigma, s.resolution, 1);
+        d["albedo"] = volume(s.albedo, s.resolution, 3);
+        d["g"] = volume(s.g, s.resolution, 1);
+        return d;
+      },
+      py::arg("model"), py::arg("resolution") = 128,
+      "The learned medium at the voxel centres of a resolution^3 grid over [-1, 1]^3: a dict of float32 arrays "
+      "indexed [z, y, x]: 'sigma' (extinction per scene unit), 'albedo' (..., 3) and 'g'.");
+  m.def(
+      "export_vdb",
+      [](const method::Model& model, const std::string& path, int resolution, float threshold, const std::string& run) {
+        method::VdbExportSettings s;
+        s.resolution = resolution;
+        s.threshold = threshold;
+        s.run = run;
+        method::VdbExportStats stats;
+        {
+          py::gil_scoped_release release;
+          stats = method::export_vdb(model, path, s);
+        }
+        py::dict d;
+        d["active_voxels"] = stats.active_voxels;
+        d["max_sigma"] = stats.max_sigma;
+        d["mean_g"] = stats.mean_g;
+        return d;
+      },
+      py::arg("model"), py::arg("path"), py::arg("resolution") = 128, py::arg("threshold") = 0.01f, py::arg("run") = "",
+      "Writes the learned medium to an OpenVDB file (atomically): sparse grids 'density' (extinction per scene "
+      "unit), 'albedo' and 'g' over the voxels with sigma above `threshold`, placed in the box [-1, 1]^3. "
+      "Returns {'active_voxels', 'max_sigma', 'mean_g'}. relit.Scene.load_vdb / relit generate --scene read it.");
   m.def("presets", &method::preset_names,
         "Names of the built-in run configs (\"fast\", \"paper\", and per method \"bi-fast\", \"nerv-paper\", ...).");
   m.def("methods", &method::method_names, "Names of the methods a run config may choose (\"ours\", \"bi\", ...).");

@@ -1,0 +1,160 @@
+// Exporting a learned medium: its property network sampled at voxel centres, written as OpenVDB grids.
+#include <relit/error.hpp>
+#include <relit/io/file.hpp>
+#include <relit/method/export.hpp>
+#include <relit/method/medium.hpp>
+
+#include <openvdb/openvdb.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <mutex>
+
+namespace fs = std::filesystem;
+
+namespace relit::method {
+
+namespace {
+
+const MediumModel& medium_model(const Model& model) {
+  const auto* m = dynamic_cast<const MediumModel*>(&model);
+  if (!m || m->parts().scattering.is_brdf())
+    throw InvalidArgument("method '" + model.method() +
+                          "' learns no participating medium (no albedo and phase function) to export");
+  return *m;
+}
+
+// The folder `path` goes into must exist (the writers would fail with less helpful messages).
+void check_parent(const std::string& path, const std::string& what) {
+  if (path.empty()) throw IOError(what + ": no output path given");
+  const fs::path parent = fs::absolute(path).parent_path();
+  if (!fs::is_directory(parent))
+    throw IOError("cannot write " + what + " '" + path + "': the folder '" + parent.string() + "' does not exist");
+  if (fs::is_directory(path)) throw IOError("cannot write " + what + " '" + path + "': it is a folder");
+}
+
+// σ-weighted mean of g over the voxels with σ above `threshold`.
+float weighted_g(const MediumSamples& s, float threshold) {
+  double w = 0.0, sum = 0.0;
+  for (std::size_t v = 0; v < s.sigma.size(); ++v)
+    if (s.sigma[v] > threshold) w += s.sigma[v], sum += double(s.sigma[v]) * s.g[v];
+  return w > 0 ? float(sum / w) : 0.0f;
+}
+
+}  // namespace
+
+MediumSamples sample_medium(const Model& model, int resolution) {
+  const MediumModel& m = medium_model(model);
+  if (resolution < 8 || resolution > 512)
+    throw InvalidArgument("export resolution must lie in [8, 512], got " + std::to_string(resolution));
+  const Device& device = m.device();
+  const std::uint32_t n_heads = m.parts().scattering.n_heads(), cols = n_heads + m.settings().n_features;
+  const float g_scale = m.parts().scattering.g_scale;
+  const std::uint64_t total = std::uint64_t(resolution) * resolution * resolution;
+  const std::uint32_t chunk = static_cast<std::uint32_t>(std::min<std::uint64_t>(total, 1u << 16));
+  nn::BatchMatrix positions(device, chunk, 3), props(device, chunk, cols);
+  auto ws = m.property_network().make_workspace(device);
+  MediumSamples out;
+  out.resolution = resolution;
+  out.sigma.resize(total);
+  out.albedo.resize(total * 3);
+  out.g.resize(total);
+  std::vector<float> host;
+  for (std::uint64_t first = 0; first < total; first += chunk) {
+    const auto n = static_cast<std::uint32_t>(std::min<std::uint64_t>(chunk, total - first));
+    positions.resize(n);
+    props.resize(n);
+    host.resize(std::size_t(n) * 3);
+    for (std::uint32_t s = 0; s < n; ++s) {  // the networks see the box as [0, 1]^3
+      const std::uint64_t v = first + s;
+      const std::uint64_t idx[3] = {v % resolution, (v / resolution) % resolution,
+                                    v / (std::uint64_t(resolution) * resolution)};
+      for (int c = 0; c < 3; ++c) host[s * 3 + c] = (float(idx[c]) + 0.5f) / float(resolution);
+    }
+    positions.upload_row_major(host);
+    m.property_network().inference(device, {&m.params(), 0}, positions, props, *ws);
+    const std::vector<float> p = props.download_row_major();
+    for (std::uint32_t s = 0; s < n; ++s) {
+      const float* row = &p[std::size_t(s) * cols];
+      const std::uint64_t v = first + s;
+      out.sigma[v] = row[0];
+      for (int c = 0; c < 3; ++c) out.albedo[v * 3 + c] = row[1 + c];
+      out.g[v] = g_scale * row[4];
+    }
+  }
+  for (const float s : out.sigma)
+    if (!std::isfinite(s)) throw InvalidArgument("the model's density is not finite (a damaged checkpoint?)");
+  return out;
+}
+
+VdbExportStats export_vdb(const Model& model, const std::string& path, const VdbExportSettings& settings) {
+  if (!(settings.threshold >= 0.0f && std::isfinite(settings.threshold)))
+    throw InvalidArgument("export threshold must be a finite number >= 0");
+  medium_model(model);
+  check_parent(path, "OpenVDB file");
+  const MediumSamples samples = sample_medium(model, settings.resolution);
+  static std::once_flag once;
+  std::call_once(once, [] { openvdb::initialize(); });
+
+  const int n = samples.resolution;
+  const double voxel = 2.0 / n;
+  auto transform = openvdb::math::Transform::createLinearTransform(voxel);
+  transform->postTranslate(openvdb::Vec3d(-1.0 + 0.5 * voxel));  // voxel (0, 0, 0)'s centre
+  auto density = openvdb::FloatGrid::create(0.0f);
+  auto albedo = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+  auto g = openvdb::FloatGrid::create(0.0f);
+  density->setName("density");
+  density->setGridClass(openvdb::GRID_FOG_VOLUME);
+  albedo->setName("albedo");
+  g->setName("g");
+  for (openvdb::GridBase* grid :
+       {static_cast<openvdb::GridBase*>(density.get()), static_cast<openvdb::GridBase*>(albedo.get()),
+        static_cast<openvdb::GridBase*>(g.get())})
+    grid->setTransform(transform->copy());
+  auto da = density->getAccessor();
+  auto aa = albedo->getAccessor();
+  auto ga = g->getAccessor();
+  VdbExportStats stats;
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const std::size_t v = (std::size_t(k) * n + j) * n + i;
+        const float s = samples.sigma[v];
+        if (!(s > settings.threshold)) continue;
+        const openvdb::Coord c(i, j, k);
+        da.setValue(c, s);
+        aa.setValue(c, openvdb::Vec3s(samples.albedo[v * 3], samples.albedo[v * 3 + 1], samples.albedo[v * 3 + 2]));
+        ga.setValue(c, samples.g[v]);
+        ++stats.active_voxels;
+        stats.max_sigma = std::max(stats.max_sigma, s);
+      }
+  stats.mean_g = weighted_g(samples, settings.threshold);
+
+  openvdb::MetaMap meta;
+  meta.insertMeta("relit_run", openvdb::StringMetadata(settings.run));
+  meta.insertMeta("relit_method", openvdb::StringMetadata(model.method()));
+  meta.insertMeta("relit_resolution", openvdb::Int32Metadata(n));
+  meta.insertMeta("relit_threshold", openvdb::FloatMetadata(settings.threshold));
+  meta.insertMeta("relit_mean_g", openvdb::FloatMetadata(stats.mean_g));
+  meta.insertMeta("relit_units", openvdb::StringMetadata("density: extinction per scene unit; box [-1, 1]^3, z up"));
+  for (const auto& [key, value] :
+       {std::pair<std::string, std::string>{"relit_run", settings.run}, {"relit_method", model.method()}})
+    density->insertMeta(key, openvdb::StringMetadata(value));
+
+  openvdb::GridPtrVec grids{density, albedo, g};
+  const std::string tmp = io::temporary_sibling(path);
+  try {
+    openvdb::io::File file(tmp);
+    file.write(grids, meta);
+    file.close();
+  } catch (const openvdb::Exception& e) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw IOError("cannot write OpenVDB file '" + path + "': " + e.what());
+  }
+  io::replace_file(tmp, path);
+  return stats;
+}
+
+}  // namespace relit::method
