@@ -5,6 +5,7 @@
 //   img = trainer.model.render(camera, relit.PointLight((0, -3, 3), 800))   # (H, W, 3) float32, linear
 //   model = relit.Model.load("runs/cloud/checkpoint.relit")
 //   relit.export_vdb(model, "cloud.vdb", resolution=128)   # density, albedo, g for Blender, Houdini, relit
+//   relit.render_orbit(model, "out/cloud", 48, orbit="light")  # out/cloud_0000.png ... and out/cloud.mp4
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -16,6 +17,7 @@
 #include <relit/method/model_io.hpp>
 #include <relit/method/presets.hpp>
 #include <relit/method/render_image.hpp>
+#include <relit/method/render_video.hpp>
 #include <relit/method/trainer.hpp>
 
 #include <algorithm>
@@ -93,6 +95,31 @@ py::array_t<float> volume(const std::vector<float>& v, int res, int channels) {
   return a;
 }
 
+Float3 triple_from(const py::object& v, const char* what) {
+  if (py::isinstance<py::float_>(v) || py::isinstance<py::int_>(v)) {
+    const float x = v.cast<float>();
+    return {x, x, x};
+  }
+  const auto t = v.cast<std::vector<float>>();
+  if (t.size() != 3) throw InvalidArgument(std::string(what) + " takes 3 values (or one for the intensity)");
+  return {t[0], t[1], t[2]};
+}
+
+std::vector<std::string> video(const method::Model& model, const std::string& prefix,
+                               const std::vector<method::Keyframe>& frames, int width, const py::object& height,
+                               float fov, std::uint32_t spp, int fps, bool mp4, const std::string& visibility) {
+  method::VideoSettings vs;
+  vs.width = width;
+  vs.height = height.is_none() ? width : height.cast<int>();
+  vs.fov = fov;
+  vs.render.spp = spp;
+  vs.render.visibility = visibility;
+  vs.fps = fps;
+  vs.mp4 = mp4;
+  py::gil_scoped_release release;
+  return method::render_video(model, frames, prefix, vs);
+}
+
 }  // namespace
 
 void bind_method(py::module_& m) {
@@ -158,6 +185,38 @@ void bind_method(py::module_& m) {
       "Writes the learned medium to an OpenVDB file (atomically): sparse grids 'density' (extinction per scene "
       "unit), 'albedo' and 'g' over the voxels with sigma above `threshold`, placed in the box [-1, 1]^3. "
       "Returns {'active_voxels', 'max_sigma', 'mean_g'}. relit.Scene.load_vdb / relit generate --scene read it.");
+  m.def(
+      "render_orbit",
+      [](const method::Model& model, const std::string& prefix, int frames, const std::string& orbit,
+         const py::object& eye, const py::object& target, const py::object& light, const py::object& intensity,
+         int width, const py::object& height, float fov, std::uint32_t spp, int fps, bool mp4,
+         const std::string& visibility) {
+        if (orbit != "camera" && orbit != "light")
+          throw InvalidArgument("orbit must be 'camera' or 'light', got '" + orbit + "'");
+        method::Keyframe start{triple_from(eye, "eye"), triple_from(target, "target"), triple_from(light, "light"),
+                               triple_from(intensity, "intensity")};
+        const auto keys = orbit == "camera" ? method::orbit_camera(start, frames) : method::orbit_light(start, frames);
+        return video(model, prefix, keys, width, height, fov, spp, fps, mp4, visibility);
+      },
+      py::arg("model"), py::arg("prefix"), py::arg("frames"), py::arg("orbit") = "light",
+      py::arg("eye") = std::vector<float>{0, -4, 1}, py::arg("target") = std::vector<float>{0, 0, 0},
+      py::arg("light") = std::vector<float>{0, -3, 3}, py::arg("intensity") = 600.0f, py::arg("width") = 128,
+      py::arg("height") = py::none(), py::arg("fov") = 0.8f, py::arg("spp") = 1u, py::arg("fps") = 24,
+      py::arg("mp4") = true, py::arg("visibility") = "",
+      "A relighting video: `frames` frames of the camera (orbit='camera') or the light (orbit='light') going once "
+      "around the vertical axis, written as PREFIX_0000.png ... and (mp4=True, through ffmpeg) PREFIX.mp4. "
+      "Returns the frame paths.");
+  m.def(
+      "render_path",
+      [](const method::Model& model, const std::string& prefix, const std::string& path, int width,
+         const py::object& height, float fov, std::uint32_t spp, int fps, bool mp4, const std::string& visibility) {
+        return video(model, prefix, method::read_keyframes(path), width, height, fov, spp, fps, mp4, visibility);
+      },
+      py::arg("model"), py::arg("prefix"), py::arg("path"), py::arg("width") = 128, py::arg("height") = py::none(),
+      py::arg("fov") = 0.8f, py::arg("spp") = 1u, py::arg("fps") = 24, py::arg("mp4") = true,
+      py::arg("visibility") = "",
+      "A video along the keyframes of a JSON file (a list of {eye, target, light, intensity}; see relit render "
+      "--path), written as render_orbit writes. Returns the frame paths.");
   m.def("presets", &method::preset_names,
         "Names of the built-in run configs (\"fast\", \"paper\", and per method \"bi-fast\", \"nerv-paper\", ...).");
   m.def("methods", &method::method_names, "Names of the methods a run config may choose (\"ours\", \"bi\", ...).");

@@ -1,7 +1,10 @@
-// Exporting a learned medium: OpenVDB grids that relit's scene loader and OpenVDB's own tools read back.
+// Interop: a learned medium exported as OpenVDB grids that relit's scene loader and OpenVDB's own tools read
+// back, and relighting videos (PNG frames and an MP4 that ffprobe reads).
 #include "test_support.hpp"
 
+#include <relit/io/image.hpp>
 #include <relit/method/export.hpp>
+#include <relit/method/render_video.hpp>
 #include <relit/scene/scene.hpp>
 #include <relit/scene/vdb.hpp>
 
@@ -125,6 +128,90 @@ TEST(Export, BadOutputsAndModelsAreClearErrorsThatDamageNothing) {
   // Solids (ours_brdf) have no medium to export.
   auto brdf = method::create_model(test::test_device(), "ours_brdf", test::tiny_ours_model());
   EXPECT_THROW(method::sample_medium(*brdf, 8), InvalidArgument);
+}
+
+// A light orbit of 4 frames at 16 x 16: 4 numbered PNGs that differ as the light moves, and an MP4 of 4 frames
+// (ffprobe counts them; ffmpeg and ffprobe come with the Debian package ffmpeg, which scripts/setup.sh installs).
+TEST(Video, LightOrbitWritesNumberedFramesAndAnMp4) {
+  const auto model = tiny_model();
+  test::TempDir dir("video");
+  const std::string prefix = (dir.path() / "orbit").string();
+  method::Keyframe start;
+  start.light = {3, 0, 1};
+  method::VideoSettings vs;
+  vs.width = vs.height = 16;
+  vs.fps = 8;
+  std::vector<std::uint64_t> seen;
+  const auto paths = method::render_video(*model, method::orbit_light(start, 4), prefix, vs, [&](const Progress& p) {
+    seen.push_back(p.done);
+    return p.total == 4 && p.unit == "frames";
+  });
+  ASSERT_EQ(paths.size(), 4u);
+  EXPECT_EQ(seen.back(), 4u);
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(paths[i], prefix + "_000" + std::to_string(i) + ".png");
+  std::vector<Image> frames;
+  for (const auto& p : paths) frames.push_back(read_image(p));
+  for (int i = 1; i < 4; ++i) {
+    ASSERT_EQ(frames[i].width, 16);
+    double diff = 0.0;
+    for (std::size_t v = 0; v < frames[0].pixels.size(); ++v)
+      diff += std::abs(frames[i].pixels[v] - frames[0].pixels[v]);
+    EXPECT_GT(diff / frames[0].pixels.size(), 1e-3) << "frame " << i << " looks like frame 0: the light did not move";
+  }
+  const auto [count, status] = shell(
+      "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
+      "stream=nb_read_frames,width,height -of csv=p=0 '" +
+      prefix + ".mp4'");
+  ASSERT_EQ(status, 0) << "ffprobe failed or is missing (Debian package ffmpeg):\n" << count;
+  EXPECT_EQ(count, "16,16,4\n");
+  for (const auto& e : std::filesystem::directory_iterator(dir.path()))  // no temporaries or logs left
+    EXPECT_NE(e.path().filename().string()[0], '.') << e.path();
+}
+
+TEST(Video, WithoutFfmpegTheErrorNamesItAndTheFramesStay) {
+  const auto model = tiny_model();
+  test::TempDir dir("video-noffmpeg");
+  const std::string prefix = (dir.path() / "v").string();
+  method::VideoSettings vs;
+  vs.width = vs.height = 8;
+  {
+    test::ScopedEnv path("PATH", dir.path().string());
+    try {
+      method::render_video(*model, method::orbit_camera({}, 2), prefix, vs);
+      FAIL() << "no error without ffmpeg";
+    } catch (const IOError& e) {
+      EXPECT_NE(std::string(e.what()).find("ffmpeg"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("v.mp4"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(std::filesystem::exists(prefix + "_0001.png"));
+  EXPECT_FALSE(std::filesystem::exists(prefix + ".mp4"));
+  // Bad frames are refused before anything is rendered.
+  method::Keyframe inside;
+  inside.light = {0, 0, 0.5f};
+  EXPECT_THROW(method::render_video(*model, {inside}, (dir.path() / "w").string(), vs), InvalidArgument);
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "w_0000.png"));
+  EXPECT_THROW(method::orbit_light({}, 0), InvalidArgument);
+}
+
+TEST(Video, KeyframeFilesKeepUnsetKeysAndNameBadEntries) {
+  test::TempDir dir("keyframes");
+  const std::string path = (dir.path() / "path.json").string();
+  std::ofstream(path) << R"([{"eye": [0, -5, 1], "light": [3, 0, 2], "intensity": 900}, {"light": [0, 3, 2]}])";
+  const auto k = method::read_keyframes(path);
+  ASSERT_EQ(k.size(), 2u);
+  EXPECT_EQ(k[1].eye, (Float3{0, -5, 1}));
+  EXPECT_EQ(k[1].light, (Float3{0, 3, 2}));
+  EXPECT_EQ(k[1].intensity, (Float3{900, 900, 900}));
+  std::ofstream(path) << R"([{"eye": [0, -5]}])";
+  try {
+    method::read_keyframes(path);
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 0: \"eye\""), std::string::npos) << e.what();
+  }
+  std::ofstream(path) << R"([{"eyes": [0, -5, 1]}])";
+  EXPECT_THROW(method::read_keyframes(path), InvalidArgument);
 }
 
 }  // namespace

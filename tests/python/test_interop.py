@@ -1,5 +1,9 @@
-"""A learned medium in other tools (docs/interop.md): `relit export` to OpenVDB, read back by relit's scene loader."""
+"""A learned medium in other tools (docs/interop.md): `relit export` to OpenVDB (read back by relit's scene loader),
+and relighting videos from `relit render` (PNG frames and an MP4 that
+ffprobe reads; ffmpeg comes from scripts/setup.sh)."""
+import json
 import os
+import subprocess
 
 import numpy as np
 import pytest
@@ -71,3 +75,25 @@ def test_cli_export_errors_are_clear_and_damage_nothing(run, tmp_path):
         code, text = cli(args)
         assert code != 0 and message in text, (args, text)
     assert {p: p.read_bytes() if p.is_file() else None for p in tmp_path.rglob("*")} == before
+
+
+def test_cli_light_orbit_video_has_its_frames_and_mp4(run, tmp_path):
+    code, text = cli(["render", run, "--out", tmp_path / "orbit.png", "--orbit-light", 4, "--resolution", 16,
+                      "--light", 3, 0, 1.5])
+    assert code == 0, text
+    frames = sorted(p.name for p in tmp_path.iterdir() if p.suffix == ".png")
+    assert frames == [f"orbit_{i:04d}.png" for i in range(4)]
+    probe = subprocess.run(["ffprobe", "-v", "error", "-count_frames", "-select_streams", "v:0", "-show_entries",
+                            "stream=nb_read_frames", "-of", "csv=p=0", str(tmp_path / "orbit.mp4")],
+                           capture_output=True, text=True)
+    assert probe.returncode == 0 and probe.stdout.strip() == "4", probe.stdout + probe.stderr
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")], "temporaries left"
+    # A keyframe path from Python, frames only.
+    path = tmp_path / "path.json"
+    path.write_text(json.dumps([{"eye": [0, -4, 1], "light": [3, -3, 2]}, {"light": [-3, -3, 2], "intensity": 900}]))
+    paths = relit.render_path(relit.Model.load(str(run / "checkpoint.relit")), str(tmp_path / "p"), str(path),
+                              width=8, mp4=False)
+    assert [os.path.basename(p) for p in paths] == ["p_0000.png", "p_0001.png"]
+    assert not (tmp_path / "p.mp4").exists()
+    code, text = cli(["render", run, "--out", tmp_path / "x.png", "--orbit-light", 2, "--orbit-camera", 2])
+    assert code != 0 and "one of --orbit-camera" in text, text
