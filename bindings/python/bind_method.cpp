@@ -186,6 +186,31 @@ void bind_method(py::module_& m) {
       "unit), 'albedo' and 'g' over the voxels with sigma above `threshold`, placed in the box [-1, 1]^3. "
       "Returns {'active_voxels', 'max_sigma', 'mean_g'}. relit.Scene.load_vdb / relit generate --scene read it.");
   m.def(
+      "export_mitsuba",
+      [](const method::Model& model, const std::string& dir, const Camera& camera, const py::object& light,
+         int resolution, std::uint32_t spp, const std::string& run) {
+        method::MitsubaExportSettings s;
+        s.resolution = resolution;
+        s.camera = camera;
+        s.light = light_from(light);
+        s.spp = spp;
+        s.run = run;
+        method::MitsubaExportStats stats;
+        {
+          py::gil_scoped_release release;
+          stats = method::export_mitsuba(model, dir, s);
+        }
+        py::dict d;
+        d["max_sigma"] = stats.max_sigma;
+        d["mean_g"] = stats.mean_g;
+        return d;
+      },
+      py::arg("model"), py::arg("dir"), py::arg("camera"), py::arg("light"), py::arg("resolution") = 128,
+      py::arg("spp") = 256u, py::arg("run") = "",
+      "Writes a Mitsuba 3 scene into the new folder `dir`: density.vol (extinction), albedo.vol and scene.xml (the "
+      "medium in a null-BSDF cube, the camera, the point light, volpath). Returns {'max_sigma', 'mean_g'} (the "
+      "scene's single HG g: the extinction-weighted mean).");
+  m.def(
       "render_orbit",
       [](const method::Model& model, const std::string& prefix, int frames, const std::string& orbit,
          const py::object& eye, const py::object& target, const py::object& light, const py::object& intensity,

@@ -1,5 +1,5 @@
 // Interop: a learned medium exported as OpenVDB grids that relit's scene loader and OpenVDB's own tools read
-// back, and relighting videos (PNG frames and an MP4 that ffprobe reads).
+// back and as a Mitsuba 3 scene, and relighting videos (PNG frames and an MP4 that ffprobe reads).
 #include "test_support.hpp"
 
 #include <relit/io/image.hpp>
@@ -128,6 +128,37 @@ TEST(Export, BadOutputsAndModelsAreClearErrorsThatDamageNothing) {
   // Solids (ours_brdf) have no medium to export.
   auto brdf = method::create_model(test::test_device(), "ours_brdf", test::tiny_ours_model());
   EXPECT_THROW(method::sample_medium(*brdf, 8), InvalidArgument);
+}
+
+// The Mitsuba scene's files; its rendering is compared with relit's in tests/python/test_interop.py.
+TEST(Export, MitsubaSceneFolderIsCompleteOrAbsent) {
+  const auto model = tiny_model();
+  test::TempDir dir("export-mitsuba");
+  method::MitsubaExportSettings s;
+  s.resolution = 8;
+  s.camera = Camera::look_at({0, -4, 1}, {0, 0, 0}, {0, 0, 1}, 0.7f, 10, 6);
+  s.light = PointLight{{2, -3, 2}, {100, 200, 300}};
+  const std::string out = (dir.path() / "scene").string();
+  const auto stats = method::export_mitsuba(*model, out, s);
+  const std::string density = io::read_file(out + "/density.vol"), albedo = io::read_file(out + "/albedo.vol");
+  EXPECT_EQ(density.size(), 48u + 8 * 8 * 8 * 4);
+  EXPECT_EQ(albedo.size(), 48u + 8 * 8 * 8 * 3 * 4);
+  EXPECT_EQ(density.substr(0, 4), std::string("VOL\x03"));
+  const std::string xml = io::read_file(out + "/scene.xml");
+  for (const char* part : {"<integrator type=\"volpath\">", "<bsdf type=\"null\"/>", "name=\"interior\"",
+                           "value=\"density.vol\"", "value=\"albedo.vol\"", "name=\"width\" value=\"10\"",
+                           "name=\"height\" value=\"6\"", "value=\"100, 200, 300\"", "<rfilter type=\"box\"/>"})
+    EXPECT_NE(xml.find(part), std::string::npos) << part << " missing from scene.xml:\n" << xml;
+  EXPECT_GT(stats.max_sigma, 0.0f);
+  // An existing folder is refused; a failed write leaves neither the folder nor a temporary.
+  EXPECT_THROW(method::export_mitsuba(*model, out, s), IOError);
+  {
+    test::FailWrites fail(io::testing::Stage::rename, "albedo.vol");
+    EXPECT_THROW(method::export_mitsuba(*model, (dir.path() / "other").string(), s), std::exception);
+  }
+  std::vector<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(dir.path())) names.push_back(e.path().filename().string());
+  EXPECT_EQ(names, std::vector<std::string>{"scene"});
 }
 
 // A light orbit of 4 frames at 16 x 16: 4 numbered PNGs that differ as the light moves, and an MP4 of 4 frames

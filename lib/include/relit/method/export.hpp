@@ -1,6 +1,6 @@
 // Exporting a learned medium to other tools (docs/interop.md): its properties sampled at the voxel centres of
 // a grid over the scene box, written as OpenVDB grids (Blender, Houdini; relit's own scene loader reads them
-// back).
+// back) or as a Mitsuba 3 scene (.vol grids and scene.xml).
 //
 //   auto model = relit::method::load_model(device, "runs/cloud/checkpoint.relit");
 //   relit::method::VdbExportSettings settings;
@@ -9,6 +9,8 @@
 #pragma once
 
 #include <relit/method/model.hpp>
+#include <relit/scene/camera.hpp>
+#include <relit/scene/light.hpp>
 
 #include <cstdint>
 #include <string>
@@ -50,5 +52,28 @@ struct VdbExportStats {
 /// relit_resolution, relit_threshold, relit_mean_g, relit_units. IOError naming the path when it cannot be
 /// written; `relit generate --scene PATH` (Scene::builtin_or_file) reads it back.
 VdbExportStats export_vdb(const Model& model, const std::string& path, const VdbExportSettings& settings = {});
+
+/// How export_mitsuba writes the scene.
+struct MitsubaExportSettings {
+  int resolution = 128;  ///< voxels per side of the box, in [8, 512]
+  Camera camera;         ///< the scene's sensor (e.g. the dataset's first test view)
+  PointLight light;      ///< the scene's point emitter
+  std::uint32_t spp = 256;
+  std::string run;  ///< named in a comment of scene.xml
+};
+
+/// What export_mitsuba wrote.
+struct MitsubaExportStats {
+  float max_sigma = 0.0f;
+  float mean_g = 0.0f;  ///< σ-weighted over the grid: Mitsuba's hg phase takes one g
+};
+
+/// Writes folder `dir` (which must not exist; built under a temporary name and renamed once complete):
+/// density.vol (σ, 1 / scene unit), albedo.vol (RGB) — Mitsuba 3's binary grids, x fastest — and scene.xml:
+/// a `cube` (the box [-1, 1]^3) with a `null` BSDF and a `heterogeneous` interior medium (sigma_t and albedo
+/// from the grids, scale 1, `hg` with the σ-weighted mean g), the camera as a `perspective` sensor
+/// (box-filtered `hdrfilm`), the light as a `point` emitter and the `volpath` integrator. `mitsuba
+/// DIR/scene.xml` renders it. IOError naming the folder when it exists or cannot be written.
+MitsubaExportStats export_mitsuba(const Model& model, const std::string& dir, const MitsubaExportSettings& settings);
 
 }  // namespace relit::method
