@@ -28,7 +28,7 @@ struct ExportOptions {
 
 // The run's name: its folder's (a trailing slash allowed).
 std::string run_name(const std::string& run) {
-  fs::path p = fs::path(run).lexically_normal();
+  fs::path p = fs::absolute(run).lexically_normal();
   if (p.filename().empty()) p = p.parent_path();
   return p.filename().string();
 }

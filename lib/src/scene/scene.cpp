@@ -353,12 +353,11 @@ Json Scene::builtin_json(const std::string& name, unsigned seed, int resolution)
 
 Json Scene::vdb_json(const std::string& path) {
   const VdbInfo info = read_vdb_info(path);
+  const std::string file = fs::absolute(path).lexically_normal().string();
+  // Any other fog volume: fitted into the box and normalised, with the medium's default scale and albedo.
+  if (!info.metadata.count("relit_units")) return {{"medium", {{"source", {{"type", "vdb"}, {"file", file}}}}}};
   const int res = info.resolution >= 8 && info.resolution <= 512 ? info.resolution : 64;
-  Json medium = {{"source",
-                  {{"type", "vdb"},
-                   {"file", fs::absolute(path).lexically_normal().string()},
-                   {"placement", "world"},
-                   {"resolution", res}}},
+  Json medium = {{"source", {{"type", "vdb"}, {"file", file}, {"placement", "world"}, {"resolution", res}}},
                  {"density_scale", 1.0}};
   if (info.has("albedo")) medium["albedo"] = "grid";
   if (const auto it = info.metadata.find("relit_mean_g"); it != info.metadata.end()) {

@@ -42,9 +42,10 @@ struct Scene {
   static Scene load(const std::string& path);
   /// The JSON of a built-in scene: "cloud", "smoke", "blobs" (media), "spheres", "torus" (solids).
   static Json builtin_json(const std::string& name, unsigned seed = 0, int resolution = 64);
-  /// The JSON of a scene of the medium in a .vdb file that relit export wrote (or any volume placed in the box
-  /// by its transform, in extinction per scene unit): a "vdb" source with placement "world" at the file's own
-  /// resolution, density_scale 1, its "albedo" grid and the σ-weighted mean g of its metadata (relit_mean_g).
+  /// The JSON of a scene of the medium in a .vdb file. One that relit export wrote (metadata relit_units): a
+  /// "vdb" source with placement "world" at the file's own resolution, density_scale 1, its "albedo" grid and
+  /// the σ-weighted mean g of its metadata (relit_mean_g). Any other: a "vdb" source fitted into the box, with
+  /// the medium's defaults.
   static Json vdb_json(const std::string& path);
   /// A built-in scene by name, a path to a scene JSON file when `name_or_path` ends in .json, or a .vdb file
   /// (vdb_json()).
