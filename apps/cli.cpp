@@ -30,6 +30,7 @@ int run(const std::vector<std::string>& args) {
   add_generate_command(app);
   add_train_command(app);
   add_render_command(app);
+  add_export_command(app);
   add_eval_command(app);
   add_demo_command(app);
   add_bench_command(app);

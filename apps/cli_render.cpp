@@ -9,6 +9,7 @@
 #include <relit/method/evaluate.hpp>
 #include <relit/method/model_io.hpp>
 #include <relit/method/render_image.hpp>
+#include <relit/method/render_video.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -39,11 +40,51 @@ struct RenderOptions {
   std::optional<int> resolution;                       // unset: 128, or the view's width
   float fov = 0.8f;
   std::uint32_t spp = 1;
+  int orbit_camera = 0, orbit_light = 0, fps = 24;  // videos
+  std::string path;
+  bool no_mp4 = false;
 };
+
+// --orbit-camera, --orbit-light, --path: numbered frames and an MP4 next to --out (without its extension).
+int run_video(const method::Model& model, const RenderOptions& o) {
+  if ((o.orbit_camera > 0) + (o.orbit_light > 0) + !o.path.empty() > 1)
+    throw InvalidArgument("give one of --orbit-camera, --orbit-light and --path");
+  if (!o.view.empty()) throw InvalidArgument("--view makes one image; a video takes --eye, --target and --light");
+  if (!o.environment.empty() && o.environment != "none")
+    throw InvalidArgument("--environment: videos are rendered under the point light alone");
+  method::Keyframe start;
+  const auto e = triple(o.eye, "--eye"), t = triple(o.target, "--target");
+  const auto l = triple(o.light.value_or(kDefaultLight), "--light");
+  const auto i = triple(o.intensity.value_or(kDefaultIntensity), "--intensity");
+  start.eye = {e[0], e[1], e[2]};
+  start.target = {t[0], t[1], t[2]};
+  start.light = {l[0], l[1], l[2]};
+  start.intensity = {i[0], i[1], i[2]};
+  const auto frames = o.orbit_camera  ? method::orbit_camera(start, o.orbit_camera)
+                      : o.orbit_light ? method::orbit_light(start, o.orbit_light)
+                                      : method::read_keyframes(o.path, start);
+  method::VideoSettings vs;
+  vs.width = vs.height = o.resolution.value_or(128);
+  vs.fov = o.fov;
+  vs.render.visibility = o.visibility;
+  vs.render.spp = o.spp;
+  vs.fps = o.fps;
+  vs.mp4 = !o.no_mp4;
+  const fs::path out(o.out);
+  const std::string prefix = (out.parent_path() / out.stem()).string();
+  ProgressBar bar("render");
+  const auto paths = method::render_video(model, frames, prefix, vs, [&](const Progress& p) { return bar(p); });
+  bar.finish();
+  std::cout << paths.size() << " frames written to " << prefix << "_0000.png ... "
+            << fs::path(paths.back()).filename().string() << (vs.mp4 ? ", video to " + prefix + ".mp4" : std::string())
+            << "\n";
+  return 0;
+}
 
 int run_render(const RenderOptions& o) {
   const Device device = Device::select(o.device);
   const auto model = method::load_model(device, (fs::path(o.run) / "checkpoint.relit").string());
+  if (o.orbit_camera || o.orbit_light || !o.path.empty()) return run_video(*model, o);
   Camera camera;
   PointLight light;
   std::shared_ptr<const EnvironmentLight> environment;  // --view of 'env+point' data: the dataset's
@@ -140,6 +181,19 @@ void add_render_command(CLI::App& app) {
                   "anti-aliased edges, like the path tracer's box filter")
       ->check(integer_in(1, 65536))
       ->capture_default_str();
+  cmd->add_option("--orbit-camera", o->orbit_camera,
+                  "a video: N frames of the camera going once around the vertical axis through --target, written "
+                  "as OUT_0000.png ... and OUT.mp4 (OUT: --out without its extension)")
+      ->check(integer_in(1, 100000));
+  cmd->add_option("--orbit-light", o->orbit_light,
+                  "a video: N frames of the light going once around the vertical axis (frames and MP4 as "
+                  "--orbit-camera)")
+      ->check(integer_in(1, 100000));
+  cmd->add_option("--path", o->path,
+                  "a video along keyframes: a JSON list of {\"eye\", \"target\", \"light\", \"intensity\"} "
+                  "objects, one per frame (a key left out keeps the previous frame's)");
+  cmd->add_option("--fps", o->fps, "frames per second of the video")->check(integer_in(1, 240))->capture_default_str();
+  cmd->add_flag("--no-mp4", o->no_mp4, "write the video's frames only (no ffmpeg needed)");
   cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
   cmd->final_callback([o] {
     if (const int code = run_render(*o)) throw CLI::RuntimeError(code);

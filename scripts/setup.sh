@@ -22,6 +22,8 @@ debian_packages=(
   clang libclang-rt-dev                                           # fuzz build: clang, libFuzzer + sanitizer runtimes
   pybind11-dev nlohmann-json3-dev libcli11-dev                    # binding, JSON, command line
   libopenvdb-dev libboost-iostreams-dev                           # OpenVDB volume import (its CMake module needs Boost.Iostreams)
+  libopenvdb-tools                                                # vdb_print: the export test reads relit's .vdb files with it
+  ffmpeg                                                          # relighting videos (MP4) and ffprobe for their test
   python3-dev python3-venv python3-pip                            # Python headers and venv
 )
 

@@ -4,6 +4,8 @@
 //       print(stats.step, stats.loss, stats.val_psnr)
 //   img = trainer.model.render(camera, relit.PointLight((0, -3, 3), 800))   # (H, W, 3) float32, linear
 //   model = relit.Model.load("runs/cloud/checkpoint.relit")
+//   relit.export_vdb(model, "cloud.vdb", resolution=128)   # density, albedo, g for Blender, Houdini, relit
+//   relit.render_orbit(model, "out/cloud", 48, orbit="light")  # out/cloud_0000.png ... and out/cloud.mp4
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -11,9 +13,11 @@
 #include "bindings.hpp"
 #include "convert.hpp"
 
+#include <relit/method/export.hpp>
 #include <relit/method/model_io.hpp>
 #include <relit/method/presets.hpp>
 #include <relit/method/render_image.hpp>
+#include <relit/method/render_video.hpp>
 #include <relit/method/trainer.hpp>
 
 #include <algorithm>
@@ -82,6 +86,40 @@ py::array_t<float> render(const method::Model& model, const Camera& camera, cons
   return a;
 }
 
+// A (res, res, res[, 3]) array indexed [z, y, x] of the values `v` (x fastest).
+py::array_t<float> volume(const std::vector<float>& v, int res, int channels) {
+  std::vector<py::ssize_t> shape{res, res, res};
+  if (channels > 1) shape.push_back(channels);
+  py::array_t<float> a(shape);
+  std::copy(v.begin(), v.end(), a.mutable_data());
+  return a;
+}
+
+Float3 triple_from(const py::object& v, const char* what) {
+  if (py::isinstance<py::float_>(v) || py::isinstance<py::int_>(v)) {
+    const float x = v.cast<float>();
+    return {x, x, x};
+  }
+  const auto t = v.cast<std::vector<float>>();
+  if (t.size() != 3) throw InvalidArgument(std::string(what) + " takes 3 values (or one for the intensity)");
+  return {t[0], t[1], t[2]};
+}
+
+std::vector<std::string> video(const method::Model& model, const std::string& prefix,
+                               const std::vector<method::Keyframe>& frames, int width, const py::object& height,
+                               float fov, std::uint32_t spp, int fps, bool mp4, const std::string& visibility) {
+  method::VideoSettings vs;
+  vs.width = width;
+  vs.height = height.is_none() ? width : height.cast<int>();
+  vs.fov = fov;
+  vs.render.spp = spp;
+  vs.render.visibility = visibility;
+  vs.fps = fps;
+  vs.mp4 = mp4;
+  py::gil_scoped_release release;
+  return method::render_video(model, frames, prefix, vs);
+}
+
 }  // namespace
 
 void bind_method(py::module_& m) {
@@ -108,6 +146,102 @@ void bind_method(py::module_& m) {
                ", visible=" + (e.visible() ? "True" : "False") + ")";
       });
 
+  m.def(
+      "sample_medium",
+      [](const method::Model& model, int resolution) {
+        method::MediumSamples s;
+        {
+          py::gil_scoped_release release;
+          s = method::sample_medium(model, resolution);
+        }
+        py::dict d;
+        d["sigma"] = volume(s.sigma, s.resolution, 1);
+        d["albedo"] = volume(s.albedo, s.resolution, 3);
+        d["g"] = volume(s.g, s.resolution, 1);
+        return d;
+      },
+      py::arg("model"), py::arg("resolution") = 128,
+      "The learned medium at the voxel centres of a resolution^3 grid over [-1, 1]^3: a dict of float32 arrays "
+      "indexed [z, y, x]: 'sigma' (extinction per scene unit), 'albedo' (..., 3) and 'g'.");
+  m.def(
+      "export_vdb",
+      [](const method::Model& model, const std::string& path, int resolution, float threshold, const std::string& run) {
+        method::VdbExportSettings s;
+        s.resolution = resolution;
+        s.threshold = threshold;
+        s.run = run;
+        method::VdbExportStats stats;
+        {
+          py::gil_scoped_release release;
+          stats = method::export_vdb(model, path, s);
+        }
+        py::dict d;
+        d["active_voxels"] = stats.active_voxels;
+        d["max_sigma"] = stats.max_sigma;
+        d["mean_g"] = stats.mean_g;
+        return d;
+      },
+      py::arg("model"), py::arg("path"), py::arg("resolution") = 128, py::arg("threshold") = 0.01f, py::arg("run") = "",
+      "Writes the learned medium to an OpenVDB file (atomically): sparse grids 'density' (extinction per scene "
+      "unit), 'albedo' and 'g' over the voxels with sigma above `threshold`, placed in the box [-1, 1]^3. "
+      "Returns {'active_voxels', 'max_sigma', 'mean_g'}. relit.Scene.load_vdb / relit generate --scene read it.");
+  m.def(
+      "export_mitsuba",
+      [](const method::Model& model, const std::string& dir, const Camera& camera, const py::object& light,
+         int resolution, std::uint32_t spp, const std::string& run) {
+        method::MitsubaExportSettings s;
+        s.resolution = resolution;
+        s.camera = camera;
+        s.light = light_from(light);
+        s.spp = spp;
+        s.run = run;
+        method::MitsubaExportStats stats;
+        {
+          py::gil_scoped_release release;
+          stats = method::export_mitsuba(model, dir, s);
+        }
+        py::dict d;
+        d["max_sigma"] = stats.max_sigma;
+        d["mean_g"] = stats.mean_g;
+        return d;
+      },
+      py::arg("model"), py::arg("dir"), py::arg("camera"), py::arg("light"), py::arg("resolution") = 128,
+      py::arg("spp") = 256u, py::arg("run") = "",
+      "Writes a Mitsuba 3 scene into the new folder `dir`: density.vol (extinction), albedo.vol and scene.xml (the "
+      "medium in a null-BSDF cube, the camera, the point light, volpath). Returns {'max_sigma', 'mean_g'} (the "
+      "scene's single HG g: the extinction-weighted mean).");
+  m.def(
+      "render_orbit",
+      [](const method::Model& model, const std::string& prefix, int frames, const std::string& orbit,
+         const py::object& eye, const py::object& target, const py::object& light, const py::object& intensity,
+         int width, const py::object& height, float fov, std::uint32_t spp, int fps, bool mp4,
+         const std::string& visibility) {
+        if (orbit != "camera" && orbit != "light")
+          throw InvalidArgument("orbit must be 'camera' or 'light', got '" + orbit + "'");
+        method::Keyframe start{triple_from(eye, "eye"), triple_from(target, "target"), triple_from(light, "light"),
+                               triple_from(intensity, "intensity")};
+        const auto keys = orbit == "camera" ? method::orbit_camera(start, frames) : method::orbit_light(start, frames);
+        return video(model, prefix, keys, width, height, fov, spp, fps, mp4, visibility);
+      },
+      py::arg("model"), py::arg("prefix"), py::arg("frames"), py::arg("orbit") = "light",
+      py::arg("eye") = std::vector<float>{0, -4, 1}, py::arg("target") = std::vector<float>{0, 0, 0},
+      py::arg("light") = std::vector<float>{0, -3, 3}, py::arg("intensity") = 600.0f, py::arg("width") = 128,
+      py::arg("height") = py::none(), py::arg("fov") = 0.8f, py::arg("spp") = 1u, py::arg("fps") = 24,
+      py::arg("mp4") = true, py::arg("visibility") = "",
+      "A relighting video: `frames` frames of the camera (orbit='camera') or the light (orbit='light') going once "
+      "around the vertical axis, written as PREFIX_0000.png ... and (mp4=True, through ffmpeg) PREFIX.mp4. "
+      "Returns the frame paths.");
+  m.def(
+      "render_path",
+      [](const method::Model& model, const std::string& prefix, const std::string& path, int width,
+         const py::object& height, float fov, std::uint32_t spp, int fps, bool mp4, const std::string& visibility) {
+        return video(model, prefix, method::read_keyframes(path), width, height, fov, spp, fps, mp4, visibility);
+      },
+      py::arg("model"), py::arg("prefix"), py::arg("path"), py::arg("width") = 128, py::arg("height") = py::none(),
+      py::arg("fov") = 0.8f, py::arg("spp") = 1u, py::arg("fps") = 24, py::arg("mp4") = true,
+      py::arg("visibility") = "",
+      "A video along the keyframes of a JSON file (a list of {eye, target, light, intensity}; see relit render "
+      "--path), written as render_orbit writes. Returns the frame paths.");
   m.def("presets", &method::preset_names,
         "Names of the built-in run configs (\"fast\", \"paper\", and per method \"bi-fast\", \"nerv-paper\", ...).");
   m.def("methods", &method::method_names, "Names of the methods a run config may choose (\"ours\", \"bi\", ...).");

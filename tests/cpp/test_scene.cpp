@@ -167,6 +167,10 @@ TEST(Vdb, ImportsTheFogVolumeFixture) {
   const std::string resolved = s.description["medium"]["source"]["file"];
   EXPECT_TRUE(std::filesystem::path(resolved).is_absolute()) << resolved;
   EXPECT_EQ(Scene::from_json(s.description).medium->density.values, s.medium->density.values);
+  // A fog volume that relit did not export, given as the scene itself: fitted into the box and normalised.
+  const Scene direct = Scene::builtin_or_file(path);
+  EXPECT_EQ(direct.description["medium"]["source"]["placement"], "fit");
+  EXPECT_EQ(direct.medium->density.values, load_vdb_density(path, "", 64, 0.9f).values);
 }
 
 }  // namespace relit

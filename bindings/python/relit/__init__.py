@@ -37,6 +37,11 @@ from ._core import EnvironmentLight, Model, Trainer, TrainStats, methods, preset
 
 __all__ += ["EnvironmentLight", "Model", "Trainer", "TrainStats", "methods", "preset", "presets"]
 
+# Interop: the learned medium for other tools (docs/interop.md).
+from ._core import export_mitsuba, export_vdb, render_orbit, render_path, sample_medium  # noqa: F401,E402
+
+__all__ += ["export_mitsuba", "export_vdb", "render_orbit", "render_path", "sample_medium"]
+
 # Evaluation reports: metrics.json / metrics.md / contact sheets from predictions and references.
 from ._core import contact_sheet, write_report  # noqa: F401,E402
 

@@ -93,8 +93,20 @@ ProceduralMedium read_medium_source(const Json& j, const std::string& ptr, const
     if (file.empty()) r.fail("file", "a vdb source needs \"file\": the path of a .vdb fog volume");
     const std::string grid = r.string("grid", "", "name of the float grid ('' = 'density' or the first float grid)");
     const int res = int(r.uint("resolution", 64, 8, 512, "dense grid voxels per side"));
-    const float fill = r.number("fill", 0.9f, 0.1f, 1.0f, "fraction of the box the longest side of the volume spans");
-    m.density = load_vdb_density(resolve_path(file, base_dir), grid, res, fill);
+    const std::string placement =
+        r.choice("placement", "fit", {"fit", "world"},
+                 "fit: the volume is centred and scaled into the box and normalised to [0, 1]; world: it stays where "
+                 "its transform puts it and its values are kept (extinction per scene unit, as relit export writes; "
+                 "a vec3 grid 'albedo' becomes the albedo grid)");
+    if (placement == "world") {
+      if (r.has("fill")) r.fail("fill", "\"fill\" is for placement \"fit\"; a \"world\" volume keeps its size");
+      const std::string path = resolve_path(file, base_dir);
+      m.density = load_vdb_world(path, grid, res);
+      if (read_vdb_info(path).has("albedo")) m.albedo = load_vdb_world(path, "albedo", res);
+    } else {
+      const float fill = r.number("fill", 0.9f, 0.1f, 1.0f, "fraction of the box the longest side of the volume spans");
+      m.density = load_vdb_density(resolve_path(file, base_dir), grid, res, fill);
+    }
     // The resolved description must load from anywhere (it is copied next to datasets): absolute path.
     r.set_resolved("file", fs::absolute(resolve_path(file, base_dir)).lexically_normal().string());
   } else {
@@ -290,6 +302,8 @@ Scene Scene::from_json(const Json& json, const std::string& base_dir) {
 
 Scene Scene::load(const std::string& path) {
   if (!fs::is_regular_file(path)) throw IOError("cannot open scene file '" + path + "': no such file");
+  if (const std::string ext = fs::path(path).extension().string(); ext == ".vdb" || ext == ".VDB")
+    return from_json(vdb_json(path));
   const Json j = parse_json(io::read_file(path), "scene file '" + path + "'");
   try {
     return from_json(j, fs::path(path).parent_path().string().empty() ? "." : fs::path(path).parent_path().string());
@@ -337,9 +351,28 @@ Json Scene::builtin_json(const std::string& name, unsigned seed, int resolution)
                         ", or a path to a scene .json file");
 }
 
+Json Scene::vdb_json(const std::string& path) {
+  const VdbInfo info = read_vdb_info(path);
+  const std::string file = fs::absolute(path).lexically_normal().string();
+  // Any other fog volume: fitted into the box and normalised, with the medium's default scale and albedo.
+  if (!info.metadata.count("relit_units")) return {{"medium", {{"source", {{"type", "vdb"}, {"file", file}}}}}};
+  const int res = info.resolution >= 8 && info.resolution <= 512 ? info.resolution : 64;
+  Json medium = {{"source", {{"type", "vdb"}, {"file", file}, {"placement", "world"}, {"resolution", res}}},
+                 {"density_scale", 1.0}};
+  if (info.has("albedo")) medium["albedo"] = "grid";
+  if (const auto it = info.metadata.find("relit_mean_g"); it != info.metadata.end()) {
+    try {
+      const float g = std::stof(it->second);
+      if (g > -1.0f && g < 1.0f) medium["g"] = g;
+    } catch (const std::exception&) {}
+  }
+  return {{"medium", medium}};
+}
+
 Scene Scene::builtin_or_file(const std::string& name_or_path, unsigned seed, int resolution) {
   const std::string ext = fs::path(name_or_path).extension().string();
   if (ext == ".json" || ext == ".JSON") return load(name_or_path);
+  if (ext == ".vdb" || ext == ".VDB") return load(name_or_path);
   return from_json(builtin_json(name_or_path, seed, resolution));
 }
 

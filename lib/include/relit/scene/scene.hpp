@@ -38,11 +38,17 @@ struct Scene {
   /// Builds a scene from JSON; `base_dir` resolves relative file paths. Throws ConfigError (with the JSON
   /// pointer) for bad values and IOError for unreadable files.
   static Scene from_json(const Json& json, const std::string& base_dir = ".");
-  /// Reads a scene JSON file.
+  /// Reads a scene JSON file, or the medium of a .vdb file (vdb_json()).
   static Scene load(const std::string& path);
   /// The JSON of a built-in scene: "cloud", "smoke", "blobs" (media), "spheres", "torus" (solids).
   static Json builtin_json(const std::string& name, unsigned seed = 0, int resolution = 64);
-  /// A built-in scene by name, or a path to a scene JSON file when `name_or_path` ends in .json.
+  /// The JSON of a scene of the medium in a .vdb file. One that relit export wrote (metadata relit_units): a
+  /// "vdb" source with placement "world" at the file's own resolution, density_scale 1, its "albedo" grid and
+  /// the σ-weighted mean g of its metadata (relit_mean_g). Any other: a "vdb" source fitted into the box, with
+  /// the medium's defaults.
+  static Json vdb_json(const std::string& path);
+  /// A built-in scene by name, a path to a scene JSON file when `name_or_path` ends in .json, or a .vdb file
+  /// (vdb_json()).
   static Scene builtin_or_file(const std::string& name_or_path, unsigned seed = 0, int resolution = 64);
   static const std::vector<std::string>& builtin_names();
 };
