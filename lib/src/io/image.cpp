@@ -103,10 +103,18 @@ Image read_image(const std::string& path) {
                   std::to_string(spec.height) + "x" + std::to_string(spec.nchannels));
   // A corrupt or forged header must not make relit allocate what no image of its needs.
   constexpr std::uint64_t kMaxValues = std::uint64_t(1) << 28;  // 1 GiB of floats: 16384 x 16384 x 1, 8192^2 x 4
-  if (std::uint64_t(spec.width) * std::uint64_t(spec.height) * std::uint64_t(spec.nchannels) > kMaxValues)
+  const std::uint64_t values = std::uint64_t(spec.width) * std::uint64_t(spec.height) * std::uint64_t(spec.nchannels);
+  if (values > kMaxValues)
     throw IOError("image '" + path + "' claims to be " + std::to_string(spec.width) + "x" +
                   std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) + ", more than the " +
                   std::to_string(kMaxValues) + " values relit reads (a corrupt header?)");
+  // Netpbm files (PFM, PPM, PGM, PBM) are not compressed: the pixels the header claims must be in the file (a PBM
+  // packs 8 to a byte). OpenImageIO would otherwise allocate the claimed size first (2.4 GB for 20 bytes).
+  if (std::string(in->format_name()) == "pnm" && values * spec.format.size() / 8 > fs::file_size(path))
+    throw IOError("image '" + path + "' is a truncated or corrupt " + in->format_name() + " file: its header claims " +
+                  std::to_string(spec.width) + "x" + std::to_string(spec.height) + "x" +
+                  std::to_string(spec.nchannels) + " pixels, the file has " + std::to_string(fs::file_size(path)) +
+                  " bytes");
   Image image(spec.width, spec.height, spec.nchannels);
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
     throw IOError("cannot read the pixels of image '" + path + "': " + in->geterror() +
