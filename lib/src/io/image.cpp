@@ -49,17 +49,18 @@ void check_claimed_sizes(const std::string& path) {
   };
   if (head.compare(0, 4, "\x76\x2f\x31\x01") == 0) {  // OpenEXR: magic, version, then name\0 type\0 size value
     std::size_t at = 8;
-    const auto text = [&]() -> std::string {
+    // A NUL-terminated string at `at`; false when the terminator lies beyond what was read.
+    const auto text = [&](std::string& out) {
       const std::size_t end = head.find('\0', at);
-      if (end == std::string::npos) return {};
-      std::string s = head.substr(at, end - at);
+      if (end == std::string::npos) return false;
+      out = head.substr(at, end - at);
       at = end + 1;
-      return s;
+      return true;
     };
+    std::string name, type;
     while (at < head.size()) {
-      const std::string name = text();
-      if (name.empty()) return;  // the end of the header (or of what was read)
-      if (text().empty() || at + 4 > head.size()) return;
+      if (!text(name) || name.empty()) return;  // the end of the header, or of what was read
+      if (!text(type) || at + 4 > head.size()) return;
       const std::uint32_t size = uint32_at(at, false);
       at += 4;
       if (size > file_size - at) fail("OpenEXR", "header attribute '" + name + "'", size, at);
