@@ -102,13 +102,17 @@ Image read_image(const std::string& path) {
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
     throw IOError("image '" + path + "' has an unsupported shape " + std::to_string(spec.width) + "x" +
                   std::to_string(spec.height) + "x" + std::to_string(spec.nchannels));
-  // A corrupt or forged header must not make relit allocate what no image of its needs.
-  constexpr std::uint64_t kMaxValues = std::uint64_t(1) << 28;  // 1 GiB of floats: 16384 x 16384 x 1, 8192^2 x 4
-  const std::uint64_t values = std::uint64_t(spec.width) * std::uint64_t(spec.height) * std::uint64_t(spec.nchannels);
-  if (values > kMaxValues)
+  // A corrupt or forged header must not make relit allocate what no image of its needs. OpenImageIO reads in
+  // chunks of up to 256 rows whatever the height, so the row length is bounded too.
+  constexpr std::uint64_t kMaxValues = std::uint64_t(1) << 28;     // 1 GiB of floats: 16384 x 16384 x 1, 8192^2 x 4
+  constexpr std::uint64_t kMaxRowValues = std::uint64_t(1) << 18;  // 65536 x 4, 16384 x 16
+  const std::uint64_t row = std::uint64_t(spec.width) * std::uint64_t(spec.nchannels);
+  const std::uint64_t values = row * std::uint64_t(spec.height);
+  if (values > kMaxValues || row > kMaxRowValues)
     throw IOError("image '" + path + "' claims to be " + std::to_string(spec.width) + "x" +
-                  std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) + ", more than the " +
-                  std::to_string(kMaxValues) + " values relit reads (a corrupt header?)");
+                  std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) + ", more than relit reads (" +
+                  std::to_string(kMaxRowValues) + " values a row, " + std::to_string(kMaxValues) +
+                  " in all): a corrupt header?");
   // Netpbm files (PFM, PPM, PGM, PBM) are not compressed: the pixels the header claims must be in the file (a PBM
   // packs 8 to a byte). OpenImageIO would otherwise allocate the claimed size first (2.4 GB for 20 bytes).
   if (std::string(in->format_name()) == "pnm" && values * spec.format.size() / 8 > fs::file_size(path))
