@@ -26,39 +26,55 @@ std::string lower_extension(const std::string& path) {
   return ext;
 }
 
-// OpenEXR 3.1 allocates each header attribute at the size the file claims before reading it, so a corrupt file
-// of a few hundred bytes can claim gigabytes. The attributes of the first header must lie inside the file.
-void check_exr_header(const std::string& path) {
+// OpenEXR 3.1 allocates each header attribute, and libpng (as OpenImageIO sets it up) each chunk, at the size
+// the file claims before reading it: a corrupt file of a few hundred bytes can claim gigabytes. So the
+// attributes of an EXR's first header and the chunks of a PNG must lie inside the file. Headers are small: the
+// first MiB is checked, what lies beyond is left to the format's reader.
+void check_claimed_sizes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
-  char magic[4] = {};
-  if (!f.read(magic, 4) || std::string(magic, 4) != "\x76\x2f\x31\x01") return;  // not OpenEXR: its reader decides
   const std::uint64_t file_size = fs::file_size(path);
-  // Headers are small: the first MiB is checked, what lies beyond is left to OpenEXR.
   std::string head(std::size_t(std::min<std::uint64_t>(file_size, std::uint64_t(1) << 20)), '\0');
-  f.seekg(0);
   f.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<std::size_t>(f.gcount()));
-  std::size_t at = 8;  // magic, version
-  const auto text = [&]() -> std::string {
-    const std::size_t end = head.find('\0', at);
-    if (end == std::string::npos) return {};
-    std::string s = head.substr(at, end - at);
-    at = end + 1;
-    return s;
+  const auto uint32_at = [&](std::size_t at, bool big_endian) {
+    std::uint32_t v = 0;
+    for (int i = 0; i < 4; ++i)
+      v |= std::uint32_t(static_cast<unsigned char>(head[at + i])) << (8 * (big_endian ? 3 - i : i));
+    return v;
   };
-  while (at < head.size()) {
-    const std::string name = text();
-    if (name.empty()) return;  // the end of the header (or of what was read)
-    const std::string type = text();
-    if (type.empty() || at + 4 > head.size()) return;
-    std::uint32_t size = 0;
-    for (int i = 0; i < 4; ++i) size |= std::uint32_t(static_cast<unsigned char>(head[at + i])) << (8 * i);
-    at += 4;
-    if (size > file_size - at)
-      throw IOError("image '" + path + "' is a corrupt OpenEXR file: header attribute '" + name + "' claims " +
-                    std::to_string(size) + " bytes at offset " + std::to_string(at) + " of a " +
-                    std::to_string(file_size) + "-byte file (truncated or corrupt)");
-    at += size;
+  const auto fail = [&](const std::string& format, const std::string& what, std::uint32_t size, std::size_t at) {
+    throw IOError("image '" + path + "' is a corrupt " + format + " file: " + what + " claims " + std::to_string(size) +
+                  " bytes at offset " + std::to_string(at) + " of a " + std::to_string(file_size) +
+                  "-byte file (truncated or corrupt)");
+  };
+  if (head.compare(0, 4, "\x76\x2f\x31\x01") == 0) {  // OpenEXR: magic, version, then name\0 type\0 size value
+    std::size_t at = 8;
+    // A NUL-terminated string at `at`; false when the terminator lies beyond what was read.
+    const auto text = [&](std::string& out) {
+      const std::size_t end = head.find('\0', at);
+      if (end == std::string::npos) return false;
+      out = head.substr(at, end - at);
+      at = end + 1;
+      return true;
+    };
+    std::string name, type;
+    while (at < head.size()) {
+      if (!text(name) || name.empty()) return;  // the end of the header, or of what was read
+      if (!text(type) || at + 4 > head.size()) return;
+      const std::uint32_t size = uint32_at(at, false);
+      at += 4;
+      if (size > file_size - at) fail("OpenEXR", "header attribute '" + name + "'", size, at);
+      at += size;
+    }
+  } else if (head.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0) {  // PNG: signature, then length type data crc
+    for (std::size_t at = 8; at + 8 <= head.size();) {
+      const std::uint32_t size = uint32_at(at, true);
+      const std::string type = head.substr(at + 4, 4);
+      at += 8;
+      if (size > file_size - at) fail("PNG", "chunk '" + type + "'", size, at);
+      if (type == "IEND") return;
+      at += std::size_t(size) + 4;
+    }
   }
 }
 
@@ -78,7 +94,7 @@ Image read_image(const std::string& path) {
   if (!fs::exists(path)) throw IOError("image file '" + path + "' does not exist");
   // A folder, a FIFO or a device (/dev/stdin would block) is no image.
   if (!fs::is_regular_file(path)) throw IOError("image file '" + path + "' is not a regular file");
-  check_exr_header(path);
+  check_claimed_sizes(path);
   auto in = OIIO::ImageInput::open(path);
   if (!in)
     throw IOError("cannot read image '" + path + "': " + OIIO::geterror() + " (is it a valid EXR/HDR/PNG file?)");
@@ -86,12 +102,24 @@ Image read_image(const std::string& path) {
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
     throw IOError("image '" + path + "' has an unsupported shape " + std::to_string(spec.width) + "x" +
                   std::to_string(spec.height) + "x" + std::to_string(spec.nchannels));
-  // A corrupt or forged header must not make relit allocate what no image of its needs.
-  constexpr std::uint64_t kMaxValues = std::uint64_t(1) << 28;  // 1 GiB of floats: 16384 x 16384 x 1, 8192^2 x 4
-  if (std::uint64_t(spec.width) * std::uint64_t(spec.height) * std::uint64_t(spec.nchannels) > kMaxValues)
+  // A corrupt or forged header must not make relit allocate what no image of its needs. OpenImageIO reads in
+  // chunks of up to 256 rows whatever the height, so the row length is bounded too.
+  constexpr std::uint64_t kMaxValues = std::uint64_t(1) << 28;     // 1 GiB of floats: 16384 x 16384 x 1, 8192^2 x 4
+  constexpr std::uint64_t kMaxRowValues = std::uint64_t(1) << 18;  // 65536 x 4, 16384 x 16
+  const std::uint64_t row = std::uint64_t(spec.width) * std::uint64_t(spec.nchannels);
+  const std::uint64_t values = row * std::uint64_t(spec.height);
+  if (values > kMaxValues || row > kMaxRowValues)
     throw IOError("image '" + path + "' claims to be " + std::to_string(spec.width) + "x" +
-                  std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) + ", more than the " +
-                  std::to_string(kMaxValues) + " values relit reads (a corrupt header?)");
+                  std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) + ", more than relit reads (" +
+                  std::to_string(kMaxRowValues) + " values a row, " + std::to_string(kMaxValues) +
+                  " in all): a corrupt header?");
+  // Netpbm files (PFM, PPM, PGM, PBM) are not compressed: the pixels the header claims must be in the file (a PBM
+  // packs 8 to a byte). OpenImageIO would otherwise allocate the claimed size first (2.4 GB for 20 bytes).
+  if (std::string(in->format_name()) == "pnm" && values * spec.format.size() / 8 > fs::file_size(path))
+    throw IOError("image '" + path + "' is a truncated or corrupt " + in->format_name() + " file: its header claims " +
+                  std::to_string(spec.width) + "x" + std::to_string(spec.height) + "x" +
+                  std::to_string(spec.nchannels) + " pixels, the file has " + std::to_string(fs::file_size(path)) +
+                  " bytes");
   Image image(spec.width, spec.height, spec.nchannels);
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
     throw IOError("cannot read the pixels of image '" + path + "': " + in->geterror() +

@@ -135,8 +135,10 @@ Grid load_vdb_density(const std::string& path, const std::string& grid_name, int
   const double index_per_unit = longest / (2.0 * fill);
 
   Grid out(resolution, resolution, resolution, 1);
-  openvdb::tools::GridSampler<openvdb::FloatGrid::ConstAccessor, openvdb::tools::BoxSampler> sampler(
-      grid->getConstAccessor(), grid->transform());
+  // The sampler keeps a reference to its accessor: a temporary one would be gone before the first sample.
+  const openvdb::FloatGrid::ConstAccessor accessor = grid->getConstAccessor();
+  openvdb::tools::GridSampler<openvdb::FloatGrid::ConstAccessor, openvdb::tools::BoxSampler> sampler(accessor,
+                                                                                                     grid->transform());
   float vmax = 0.0f;
   for (int k = 0; k < resolution; ++k)
     for (int j = 0; j < resolution; ++j)
