@@ -49,6 +49,29 @@ void sync_directory_of(const std::string& path) {
   }
 }
 
+// Writes all of `bytes` to `fd`, retrying short writes and EINTR; throws IOError naming `path`.
+void write_all(int fd, const std::string& bytes, const std::string& path) {
+  for (std::size_t done = 0; done < bytes.size();) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) fail("write", path, n < 0 ? errno : EIO);
+    done += static_cast<std::size_t>(n);
+  }
+}
+
+// The last step of every atomic file write: rename the flushed temporary over `path` (the test hook's rename
+// stage first) and make the rename durable; the temporary is removed on failure.
+void rename_into_place(const std::string& tmp, const std::string& path) {
+  try {
+    inject(testing::Stage::rename, path);
+    if (::rename(tmp.c_str(), path.c_str()) != 0) fail("replace", path, errno);
+  } catch (...) {
+    ::unlink(tmp.c_str());
+    throw;
+  }
+  sync_directory_of(path);
+}
+
 bool process_alive(long pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
 
 }  // namespace
@@ -67,7 +90,6 @@ std::string temporary_sibling(const std::string& path) {
 
 void replace_file(const std::string& tmp, const std::string& path) {
   try {
-    inject(testing::Stage::rename, path);
     // Writers that buffer (OpenImageIO) may report success while the disk is full: fsync surfaces the
     // deferred error, and an empty result is never a valid file.
     const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
@@ -79,12 +101,11 @@ void replace_file(const std::string& tmp, const std::string& path) {
     ::close(fd);
     if (!synced) fail("flush", path, err);
     if (!sized || st.st_size == 0) throw IOError("cannot write '" + path + "': the written file is empty (disk full?)");
-    if (::rename(tmp.c_str(), path.c_str()) != 0) fail("replace", path, errno);
   } catch (...) {
     ::unlink(tmp.c_str());
     throw;
   }
-  sync_directory_of(path);  // make the rename itself durable
+  rename_into_place(tmp, path);
 }
 
 void rename_directory(const std::string& tmp, const std::string& path) {
@@ -99,15 +120,7 @@ void write_file_atomic(const std::string& path, const std::string& bytes) {
   if (fd < 0) fail("create a temporary file to write", path, errno);
   try {
     inject(testing::Stage::write, path);
-    std::size_t done = 0;
-    while (done < bytes.size()) {
-      const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
-      if (n < 0) {
-        if (errno == EINTR) continue;
-        fail("write", path, errno);
-      }
-      done += static_cast<std::size_t>(n);
-    }
+    write_all(fd, bytes, path);
     if (::fsync(fd) != 0) fail("flush", path, errno);
   } catch (...) {
     ::close(fd);
@@ -119,17 +132,20 @@ void write_file_atomic(const std::string& path, const std::string& bytes) {
     ::unlink(tmp.c_str());
     fail("flush", path, err);
   }
-  if (bytes.empty()) {  // replace_file refuses empty results; an empty file asked for is fine
-    inject(testing::Stage::rename, path);
-    if (::rename(tmp.c_str(), path.c_str()) != 0) {
-      const int err = errno;
-      ::unlink(tmp.c_str());
-      fail("replace", path, err);
-    }
-    sync_directory_of(path);
-    return;
+  rename_into_place(tmp, path);  // flushed above: no second fsync, and an empty file asked for is fine
+}
+
+void append_file(const std::string& path, const std::string& bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (fd < 0) fail("append to", path, errno);
+  try {
+    write_all(fd, bytes, path);
+    if (::fsync(fd) != 0) fail("flush", path, errno);
+  } catch (...) {
+    ::close(fd);
+    throw;
   }
-  replace_file(tmp, path);
+  if (::close(fd) != 0) fail("flush", path, errno);
 }
 
 std::string read_file(const std::string& path) {

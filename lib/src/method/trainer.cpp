@@ -9,13 +9,8 @@
 #include <relit/metrics.hpp>
 #include <relit/nn/registry.hpp>
 
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -281,24 +276,10 @@ void Trainer::write_log(const TrainStats& s) {
   m_pending_log += line.dump() + "\n";
 }
 
-// Appends the pending lines (their steps are now in the checkpoint): one write, then fsync. A kill in
-// between can at worst tear the last line, which trim_log() drops on resume.
+// Appends the pending lines (their steps are now in the checkpoint); a torn last line is dropped by trim_log().
 void Trainer::flush_log() {
   if (m_out.empty() || m_pending_log.empty()) return;
-  const std::string path = (fs::path(m_out) / "log.jsonl").string();
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-  bool ok = fd >= 0;
-  int err = errno;
-  for (std::size_t done = 0; ok && done < m_pending_log.size();) {
-    const ssize_t n = ::write(fd, m_pending_log.data() + done, m_pending_log.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    ok = n > 0;
-    err = errno;
-    if (ok) done += std::size_t(n);
-  }
-  if (ok && ::fsync(fd) != 0) ok = false, err = errno;
-  if (fd >= 0) ::close(fd);
-  if (!ok) throw IOError("cannot append to '" + path + "': " + std::strerror(err));
+  io::append_file((fs::path(m_out) / "log.jsonl").string(), m_pending_log);
   m_pending_log.clear();
 }
 

@@ -13,6 +13,10 @@ namespace relit::io {
 /// Writes `bytes` to `path` atomically (see above). Throws IOError naming the path and the system's reason.
 void write_file_atomic(const std::string& path, const std::string& bytes);
 
+/// Appends `bytes` to `path` (created if missing) in one write and fsyncs it: for logs, which grow rather
+/// than being replaced; a kill can at worst tear the last line. Throws IOError naming the path.
+void append_file(const std::string& path, const std::string& bytes);
+
 /// A unique temporary path next to `path` that keeps its extension (writers that pick a format by extension,
 /// such as OpenImageIO, can write to it), for use with replace_file().
 std::string temporary_sibling(const std::string& path);
