@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cmath>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -54,6 +55,19 @@ inline CLI::Validator number_in(double lo, double hi) {
         return "must be a finite number in " + range + ", got " + text;
       },
       range);
+}
+
+/// The `--device` option every device command has.
+inline void add_device_option(CLI::App* cmd, std::string& device) {
+  cmd->add_option("--device,-d", device, "OpenCL device selector (index, platform:device, or name part)");
+}
+
+/// Runs `run(*options)` once the command line is parsed; a non-zero result becomes the exit code.
+template <class Options, class Run>
+void on_parsed(CLI::App* cmd, std::shared_ptr<Options> options, Run run) {
+  cmd->final_callback([options, run] {
+    if (const int code = run(*options)) throw CLI::RuntimeError(code);
+  });
 }
 
 // Each subcommand registers itself on the app; add new ones in cli.cpp.

@@ -710,9 +710,7 @@ void add_bench_command(CLI::App& app) {
                   "corrupt this case's result before verification (tests the "
                   "failure path)")
       ->group("");
-  cmd->final_callback([o] {
-    if (const int code = run_bench(*o)) throw CLI::RuntimeError(code);
-  });
+  on_parsed(cmd, o, run_bench);
 }
 
 }  // namespace relit::cli

@@ -69,10 +69,8 @@ void add_demo_command(CLI::App& app) {
   cmd->add_option("--out,-o", o->out, "demo folder (data/cloud, run/, run/eval/); reruns reuse what is there")
       ->capture_default_str();
   cmd->add_option("--steps", o->steps, "training steps (default: the fast preset's)")->check(at_least(0));
-  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
-  cmd->final_callback([o] {
-    if (const int code = run_demo(*o)) throw CLI::RuntimeError(code);
-  });
+  add_device_option(cmd, o->device);
+  on_parsed(cmd, o, run_demo);
 }
 
 }  // namespace relit::cli

@@ -134,9 +134,7 @@ void add_devices_command(CLI::App& app) {
                   "only devices matching this selector (index, platform:device, or name part)");
   cmd->add_flag("--json", o->json, "print JSON instead of a table");
   cmd->add_flag("!--no-check", o->check, "skip building relit's kernels");
-  cmd->final_callback([o] {
-    if (const int code = run_devices(*o)) throw CLI::RuntimeError(code);
-  });
+  on_parsed(cmd, o, run_devices);
 }
 
 }  // namespace relit::cli

@@ -75,10 +75,8 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--spp", o->spp, "rays per pixel, averaged over an n x n grid in the pixel (1, 4, 9, ...)")
       ->check(integer_in(1, 65536))
       ->capture_default_str();
-  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
-  cmd->final_callback([o] {
-    if (const int code = run_eval(*o)) throw CLI::RuntimeError(code);
-  });
+  add_device_option(cmd, o->device);
+  on_parsed(cmd, o, run_eval);
 }
 
 }  // namespace relit::cli

@@ -113,10 +113,8 @@ void add_export_command(CLI::App& app) {
                   "voxels whose extinction (1 / scene unit) is at or below this stay empty in the OpenVDB grids")
       ->check(number_in(0, 1e9))
       ->capture_default_str();
-  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
-  cmd->final_callback([o] {
-    if (const int code = run_export(*o)) throw CLI::RuntimeError(code);
-  });
+  add_device_option(cmd, o->device);
+  on_parsed(cmd, o, run_export);
 }
 
 }  // namespace relit::cli

@@ -102,10 +102,8 @@ void add_generate_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("!--no-previews", s.previews, "skip the PNG previews");
   cmd->add_flag("--overwrite", s.overwrite, "replace an existing output folder once the new dataset is complete");
-  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
-  cmd->final_callback([o] {
-    if (const int code = run_generate(*o)) throw CLI::RuntimeError(code);
-  });
+  add_device_option(cmd, o->device);
+  on_parsed(cmd, o, run_generate);
 }
 
 }  // namespace relit::cli

@@ -194,10 +194,8 @@ void add_render_command(CLI::App& app) {
                   "objects, one per frame (a key left out keeps the previous frame's)");
   cmd->add_option("--fps", o->fps, "frames per second of the video")->check(integer_in(1, 240))->capture_default_str();
   cmd->add_flag("--no-mp4", o->no_mp4, "write the video's frames only (no ffmpeg needed)");
-  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
-  cmd->final_callback([o] {
-    if (const int code = run_render(*o)) throw CLI::RuntimeError(code);
-  });
+  add_device_option(cmd, o->device);
+  on_parsed(cmd, o, run_render);
 }
 
 }  // namespace relit::cli

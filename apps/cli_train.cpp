@@ -126,10 +126,8 @@ void add_train_command(CLI::App& app) {
   cmd->add_flag("--resume", o->resume, "continue the run in --out from its checkpoint");
   cmd->add_option("--profile", o->profile, "time each stage over this many steps, print it and exit (nothing written)")
       ->check(integer_in(1, 100000));
-  cmd->add_option("--device,-d", o->device, "OpenCL device selector (index, platform:device, or name part)");
-  cmd->final_callback([o] {
-    if (const int code = run_train(*o)) throw CLI::RuntimeError(code);
-  });
+  add_device_option(cmd, o->device);
+  on_parsed(cmd, o, run_train);
 }
 
 }  // namespace relit::cli
