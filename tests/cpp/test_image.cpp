@@ -73,6 +73,40 @@ TEST(Image, BadFilesGiveClearErrors) {
   EXPECT_THROW(write_image((dir.path() / "no/such/folder/a.exr").string(), Image(2, 2, 3)), IOError);
 }
 
+// OpenEXR allocates its line buffers when it opens a file, at the size of the data window: a forged window is
+// refused before OpenEXR sees the file (a 212-byte file claiming one row of 6.3 million pixels made it
+// allocate and clear 150 MB), with the sizes named.
+TEST(Image, ExrDataWindowBeyondTheLimitsIsRefusedBeforeOpenExrAllocates) {
+  test::TempDir dir("image");
+  const std::string path = (dir.path() / "wide.exr").string();
+  write_image(path, Image(7, 5, 3));
+  std::string bytes = io::read_file(path);
+  const std::string key("dataWindow\0box2i\0", 17);
+  const std::size_t at = bytes.find(key);
+  ASSERT_NE(at, std::string::npos);
+  const auto set_int32 = [&](std::size_t i, std::int32_t v) {
+    for (int b = 0; b < 4; ++b) bytes[at + key.size() + 4 + 4 * i + b] = char((std::uint32_t(v) >> (8 * b)) & 0xff);
+  };
+  set_int32(2, 6291455);  // xmax: one row of 6291456 pixels
+  io::write_file_atomic(path, bytes);
+  try {
+    read_image(path);
+    FAIL() << "no error for a data window of 6291456 x 5 pixels";
+  } catch (const IOError& e) {
+    EXPECT_NE(std::string(e.what()).find("wide.exr' claims to be 6291456x5 pixels, more than relit reads"),
+              std::string::npos)
+        << e.what();
+  }
+  set_int32(2, -3);  // xmax < xmin
+  io::write_file_atomic(path, bytes);
+  try {
+    read_image(path);
+    FAIL() << "no error for an empty data window";
+  } catch (const IOError& e) {
+    EXPECT_NE(std::string(e.what()).find("its data window is -3x5 pixels"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Image, AtomicWriteKeepsTheOldFileWhenWritingFails) {
   test::TempDir dir("image");
   const std::string path = (dir.path() / "a.exr").string();

@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -20,16 +21,126 @@ namespace relit {
 
 namespace {
 
+// A corrupt or forged header must not make relit allocate what no image of its needs. OpenImageIO reads in
+// chunks of up to 256 rows whatever the height, so the row length is bounded too.
+constexpr std::uint64_t kMaxValues = std::uint64_t(1) << 28;     // 1 GiB of floats: 16384 x 16384 x 1, 8192^2 x 4
+constexpr std::uint64_t kMaxRowValues = std::uint64_t(1) << 18;  // 65536 x 4, 16384 x 16
+
+[[noreturn]] void fail_too_large(const std::string& path, std::int64_t width, std::int64_t height,
+                                 const std::string& channels) {
+  throw IOError("image '" + path + "' claims to be " + std::to_string(width) + "x" + std::to_string(height) + channels +
+                ", more than relit reads (" + std::to_string(kMaxRowValues) + " values a row, " +
+                std::to_string(kMaxValues) + " in all): a corrupt header?");
+}
+
 std::string lower_extension(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return ext;
 }
 
-// OpenEXR 3.1 allocates each header attribute, and libpng (as OpenImageIO sets it up) each chunk, at the size
-// the file claims before reading it: a corrupt file of a few hundred bytes can claim gigabytes. So the
-// attributes of an EXR's first header and the chunks of a PNG must lie inside the file. Headers are small: the
-// first MiB is checked, what lies beyond is left to the format's reader.
+// OpenEXR 3.1 allocates some header attributes (strings, vectors, previews, unknown types), and libpng (as
+// OpenImageIO sets it up) each chunk, at the size the file claims before reading it: a corrupt file of a few
+// hundred bytes can claim gigabytes. So these must lie inside the file. The EXR headers are walked as OpenEXR
+// 3.1 reads them (Header::readFrom): attributes of fixed-size types (box2i, v2f, compression, ...) and channel
+// lists are read at their own length whatever size the file claims, so the walk must skip them the same way or it
+// falls out of step with OpenEXR. Headers are small: the first MiB is checked, what lies beyond is left to the
+// format's reader. The data window and the tile size are checked against relit's size limits here too: OpenEXR
+// allocates its line and tile buffers when it opens a file (a 212-byte file claiming one row of 6.3 million
+// pixels made it allocate and clear 150 MB).
+void check_exr_header(const std::string& path, const std::string& head, std::uint64_t file_size) {
+  const auto uint32_at = [&](std::size_t at) {
+    std::uint32_t v = 0;
+    for (int i = 0; i < 4; ++i) v |= std::uint32_t(static_cast<unsigned char>(head[at + i])) << (8 * i);
+    return v;
+  };
+  const auto corrupt = [&](const std::string& what) {
+    throw IOError("image '" + path + "' is a corrupt OpenEXR file: " + what + " (truncated or corrupt)");
+  };
+  const auto claims = [&](const std::string& what, std::uint64_t size, std::size_t at) {
+    if (size > file_size - std::min<std::uint64_t>(file_size, at))
+      corrupt(what + " claims " + std::to_string(size) + " bytes at offset " + std::to_string(at) + " of a " +
+              std::to_string(file_size) + "-byte file");
+  };
+  // The bytes OpenEXR 3.1 reads for a value of each fixed-size type.
+  static const std::map<std::string, std::size_t> fixed = {{"box2i", 16},    {"box2f", 16},
+                                                           {"int", 4},       {"float", 4},
+                                                           {"double", 8},    {"v2i", 8},
+                                                           {"v2f", 8},       {"v2d", 16},
+                                                           {"v3i", 12},      {"v3f", 12},
+                                                           {"v3d", 24},      {"m33f", 36},
+                                                           {"m33d", 72},     {"m44f", 64},
+                                                           {"m44d", 128},    {"compression", 1},
+                                                           {"lineOrder", 1}, {"envmap", 1},
+                                                           {"rational", 8},  {"timecode", 8},
+                                                           {"keycode", 28},  {"chromaticities", 32},
+                                                           {"tiledesc", 9},  {"deepImageState", 1}};
+  const bool multipart = (uint32_at(4) & 0x1000u) != 0;
+  std::size_t at = 8;
+  // A NUL-terminated string at `at`; false when the terminator lies beyond what was read.
+  const auto text = [&](std::string& out) {
+    const std::size_t end = head.find('\0', at);
+    if (end == std::string::npos) return false;
+    out = head.substr(at, end - at);
+    at = end + 1;
+    return true;
+  };
+  std::string name, type;
+  for (;;) {                    // headers (several in a multi-part file, ended by an empty one)
+    for (;;) {                  // attributes: name\0 type\0 size value; an empty name ends the header
+      if (!text(name)) return;  // beyond what was read
+      if (name.empty()) break;
+      if (!text(type) || at + 4 > head.size()) return;
+      const std::uint32_t size = uint32_at(at);
+      at += 4;
+      const std::string what = "header attribute '" + name + "'";
+      if (const auto f = fixed.find(type); f != fixed.end()) {
+        if (at + f->second > head.size()) return;
+        if (type == "box2i" && name == "dataWindow") {
+          const auto int32_at = [&](std::size_t i) { return std::int64_t(std::int32_t(uint32_at(at + 4 * i))); };
+          const std::int64_t width = int32_at(2) - int32_at(0) + 1, height = int32_at(3) - int32_at(1) + 1;
+          if (width <= 0 || height <= 0)
+            throw IOError("image '" + path + "' is a corrupt OpenEXR file: its data window is " +
+                          std::to_string(width) + "x" + std::to_string(height) + " pixels");
+          if (std::uint64_t(width) > kMaxRowValues || std::uint64_t(width) * std::uint64_t(height) > kMaxValues)
+            fail_too_large(path, width, height, " pixels");
+        }
+        if (type == "tiledesc") {
+          const std::uint64_t tx = uint32_at(at), ty = uint32_at(at + 4);
+          if (tx > kMaxRowValues || tx * ty > kMaxValues)
+            throw IOError("image '" + path + "' claims tiles of " + std::to_string(tx) + "x" + std::to_string(ty) +
+                          " pixels, more than relit reads: a corrupt header?");
+        }
+        at += f->second;
+      } else if (type == "chlist") {  // name\0 + 16 bytes per channel, up to an empty name
+        std::string channel;
+        for (;;) {
+          if (!text(channel)) return;
+          if (channel.empty()) break;
+          at += 16;
+          if (at > head.size()) return;
+        }
+      } else if (type == "preview") {  // width, height, then width x height RGBA bytes
+        if (at + 8 > head.size()) return;
+        claims(what + " (a " + std::to_string(uint32_at(at)) + "x" + std::to_string(uint32_at(at + 4)) + " preview)",
+               std::uint64_t(uint32_at(at)) * uint32_at(at + 4) * 4, at + 8);
+        at += 8 + std::size_t(std::uint64_t(uint32_at(at)) * uint32_at(at + 4) * 4);
+      } else {  // string, stringvector, floatvector and unknown (opaque) types: read at the claimed size
+        claims(what, size, at);
+        if (type == "stringvector")
+          for (std::size_t p = at; p + 4 <= at + size && p + 4 <= head.size();) {
+            const std::uint32_t n = uint32_at(p);
+            claims(what + ": a string of it", n, p + 4);
+            p += 4 + std::size_t(n);
+          }
+        at += size;
+      }
+      if (at >= head.size()) return;
+    }
+    if (!multipart || at >= head.size() || head[at] == '\0') return;
+  }
+}
+
 void check_claimed_sizes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   const std::uint64_t file_size = fs::file_size(path);
@@ -47,25 +158,8 @@ void check_claimed_sizes(const std::string& path) {
                   " bytes at offset " + std::to_string(at) + " of a " + std::to_string(file_size) +
                   "-byte file (truncated or corrupt)");
   };
-  if (head.compare(0, 4, "\x76\x2f\x31\x01") == 0) {  // OpenEXR: magic, version, then name\0 type\0 size value
-    std::size_t at = 8;
-    // A NUL-terminated string at `at`; false when the terminator lies beyond what was read.
-    const auto text = [&](std::string& out) {
-      const std::size_t end = head.find('\0', at);
-      if (end == std::string::npos) return false;
-      out = head.substr(at, end - at);
-      at = end + 1;
-      return true;
-    };
-    std::string name, type;
-    while (at < head.size()) {
-      if (!text(name) || name.empty()) return;  // the end of the header, or of what was read
-      if (!text(type) || at + 4 > head.size()) return;
-      const std::uint32_t size = uint32_at(at, false);
-      at += 4;
-      if (size > file_size - at) fail("OpenEXR", "header attribute '" + name + "'", size, at);
-      at += size;
-    }
+  if (head.size() >= 8 && head.compare(0, 4, "\x76\x2f\x31\x01") == 0) {
+    check_exr_header(path, head, file_size);
   } else if (head.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0) {  // PNG: signature, then length type data crc
     for (std::size_t at = 8; at + 8 <= head.size();) {
       const std::uint32_t size = uint32_at(at, true);
@@ -102,17 +196,10 @@ Image read_image(const std::string& path) {
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 || spec.depth > 1)
     throw IOError("image '" + path + "' has an unsupported shape " + std::to_string(spec.width) + "x" +
                   std::to_string(spec.height) + "x" + std::to_string(spec.nchannels));
-  // A corrupt or forged header must not make relit allocate what no image of its needs. OpenImageIO reads in
-  // chunks of up to 256 rows whatever the height, so the row length is bounded too.
-  constexpr std::uint64_t kMaxValues = std::uint64_t(1) << 28;     // 1 GiB of floats: 16384 x 16384 x 1, 8192^2 x 4
-  constexpr std::uint64_t kMaxRowValues = std::uint64_t(1) << 18;  // 65536 x 4, 16384 x 16
   const std::uint64_t row = std::uint64_t(spec.width) * std::uint64_t(spec.nchannels);
   const std::uint64_t values = row * std::uint64_t(spec.height);
   if (values > kMaxValues || row > kMaxRowValues)
-    throw IOError("image '" + path + "' claims to be " + std::to_string(spec.width) + "x" +
-                  std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) + ", more than relit reads (" +
-                  std::to_string(kMaxRowValues) + " values a row, " + std::to_string(kMaxValues) +
-                  " in all): a corrupt header?");
+    fail_too_large(path, spec.width, spec.height, "x" + std::to_string(spec.nchannels));
   // Netpbm files (PFM, PPM, PGM, PBM) are not compressed: the pixels the header claims must be in the file (a PBM
   // packs 8 to a byte). OpenImageIO would otherwise allocate the claimed size first (2.4 GB for 20 bytes).
   if (std::string(in->format_name()) == "pnm" && values * spec.format.size() / 8 > fs::file_size(path))
@@ -161,6 +248,9 @@ void write_image(const std::string& path, const Image& image) {
     spec.attribute("oiio:ColorSpace", "sRGB");
   else
     spec.attribute("compression", "zip");
+  // OpenImageIO stamps EXR files with the time of writing (capDate) unless told a DateTime: an empty one keeps
+  // the bytes a function of the pixels alone, so a dataset generated twice, or by several MPI ranks, is identical.
+  spec.attribute("DateTime", "");
 
   std::vector<float> data = image.pixels;
   if (eight_bit) {
