@@ -34,6 +34,17 @@ else()
   unset(BUILD_SHARED_LIBS)
 endif()
 
+# MPI for data parallelism over several devices and machines (docs/scaling.md); relit builds without it.
+set(RELIT_MPI_FOUND OFF)
+if(RELIT_WITH_MPI)
+  find_package(MPI COMPONENTS CXX)                 # MPI::MPI_CXX
+  if(MPI_CXX_FOUND)
+    set(RELIT_MPI_FOUND ON)
+  else()
+    message(STATUS "relit: no MPI found: building without data parallelism (install libopenmpi-dev openmpi-bin)")
+  endif()
+endif()
+
 if(RELIT_BUILD_APPS OR RELIT_BUILD_PYTHON)
   find_package(CLI11 CONFIG REQUIRED)              # CLI11::CLI11
 endif()

@@ -4,6 +4,7 @@
 //   ├── InvalidArgument        bad parameter or config value          (Python: ValueError)
 //   │   └── ConfigError        bad JSON config: carries the JSON pointer
 //   ├── IOError                missing, unreadable or corrupt file     (Python: OSError)
+//   ├── ParallelError          another MPI rank failed or did not answer (Python: RuntimeError)
 //   └── DeviceError            OpenCL device problems                  (Python: RuntimeError)
 //       ├── ClError            an OpenCL call failed: call, code name, file:line
 //       └── BuildError         a kernel failed to compile: device, options, full log, saved source
@@ -37,6 +38,11 @@ class ConfigError : public InvalidArgument {
 };
 
 class IOError : public Error {
+ public:
+  using Error::Error;
+};
+
+class ParallelError : public Error {
  public:
   using Error::Error;
 };

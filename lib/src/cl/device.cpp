@@ -6,6 +6,7 @@
 #include <relit/cl/program.hpp>
 #include <relit/error.hpp>
 #include <relit/log.hpp>
+#include <relit/parallel.hpp>
 
 #include <unistd.h>
 
@@ -247,9 +248,28 @@ Device Device::select(const std::string& selector) {
   const std::string s = selector_or_env(selector, source);
   const auto all = enumerate();
   const Enumerated* chosen = nullptr;
-  if (source == "default") {
-    const auto gpu = std::find_if(all.begin(), all.end(), [](const Enumerated& e) { return e.info.type == "gpu"; });
-    chosen = gpu != all.end() ? &*gpu : &all.front();
+  // Several ranks on this machine (MPI): by default rank r of the machine takes its r-th GPU (or device, when
+  // there is no GPU), sharing them round-robin when there are fewer; "distinct" refuses to share.
+  const int local_ranks = parallel::local_size(), local_rank = parallel::local_rank();
+  const bool distinct = lower(trim(s)) == "distinct";
+  if (source == "default" || distinct) {
+    std::vector<const Enumerated*> pool;
+    for (const auto& e : all)
+      if (e.info.type == "gpu") pool.push_back(&e);
+    if (pool.empty())
+      for (const auto& e : all) pool.push_back(&e);
+    if (distinct && local_ranks > int(pool.size()))
+      throw DeviceError(std::string(source == "RELIT_DEVICE" ? "RELIT_DEVICE" : "the device selector") +
+                        " 'distinct' asks for one device per rank, but " + std::to_string(local_ranks) +
+                        " ranks run on this machine and it has " + std::to_string(pool.size()) + " " +
+                        (pool.front()->info.type == "gpu" ? "GPU" : "device") + (pool.size() == 1 ? "" : "s") +
+                        ": start at most that many ranks per machine, or let ranks share devices (no selector)."
+                        " Devices:" +
+                        available_list(all));
+    chosen = pool[std::size_t(local_rank) % pool.size()];
+    if (local_ranks > int(pool.size()) && local_rank < local_ranks)
+      log_info(parallel::rank_prefix() + std::to_string(local_ranks) + " ranks on this machine share " +
+               std::to_string(pool.size()) + " device(s)");
   } else {
     for (const auto& e : all)
       if (matches(s, e.info)) {
@@ -259,8 +279,8 @@ Device Device::select(const std::string& selector) {
   }
   if (!chosen) throw DeviceError(no_match_message(s, source, all));
   Device device(open_state(*chosen));
-  log_info("device " + std::to_string(chosen->info.index) + ": " + chosen->info.description() +
-           (source == "default" ? "" : " (" + source + " '" + trim(s) + "')"));
+  log_info(parallel::rank_prefix() + "device " + std::to_string(chosen->info.index) + ": " +
+           chosen->info.description() + (source == "default" ? "" : " (" + source + " '" + trim(s) + "')"));
   return device;
 }
 
