@@ -26,7 +26,8 @@ __kernel void sample_fine(const uint n_rays, const uint jitter, const uint seed,
                           __global const float* restrict t_coarse, __global const float* restrict delta_coarse,
                           __global const float* restrict props_coarse, const uint prop_cols,
                           __global float* restrict t_fine_only, __global float* restrict t_out,
-                          __global float* restrict delta_out, __global float* restrict positions) {
+                          __global float* restrict delta_out, __global float* restrict positions, const uint ray_first,
+                          const uint ray_stride) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
   __global const float* ray = RAY_RECORD(rays, r);
@@ -53,7 +54,7 @@ __kernel void sample_fine(const uint n_rays, const uint jitter, const uint seed,
     T *= exp(-sd);
   }
   for (uint j = 0; j < N_FINE; ++j) {
-    const float v = jitter ? relit_uniform(relit_hash2(seed, r * N_FINE + j)) : 0.5f;
+    const float v = jitter ? relit_uniform(relit_hash2(seed, (ray_first + ray_stride * r) * N_FINE + j)) : 0.5f;
     const float u = ((float)j + v) / N_FINE;
     while (i + 1 < N_COARSE && cdf + w_i < u) {
       cdf += w_i;

@@ -17,15 +17,16 @@ inline void write_ray(__global float* ray, __global const float* cam, float px, 
 }
 
 // A training batch: ray j of iteration `iteration` looks through a pixel centre of an image, both drawn
-// uniformly from (seed, iteration, j). Writes the ray and the pixel's RGB target.
+// uniformly from (seed, iteration, j). Writes the ray and the pixel's RGB target. Local ray j is ray
+// ray_first + ray_stride j of the global batch (a rank's share, relit/parallel.hpp).
 __kernel void training_rays(const uint n_rays, const uint seed, const uint iteration, const uint n_images,
                             const uint width, const uint height, __global const float* restrict cameras,
                             __global const float* restrict lights, __global const float* restrict images,
                             __global float* restrict rays, __global float* restrict targets,
-                            __global uint* restrict pixel_ids) {
+                            __global uint* restrict pixel_ids, const uint ray_first, const uint ray_stride) {
   const uint j = get_global_id(0);
   if (j >= n_rays) return;
-  const uint h = relit_hash2(relit_hash2(seed, iteration), j);
+  const uint h = relit_hash2(relit_hash2(seed, iteration), ray_first + ray_stride * j);
   const uint image = h % n_images;
   const uint pixel = relit_hash(h ^ 0x9e3779b9u) % (width * height);
   const uint px = pixel % width, py = pixel / width;

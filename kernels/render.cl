@@ -110,9 +110,11 @@ inline void sh_closed_form(const float16* c, __global const float* view_basis, u
 // Intersects each ray with the box [-1, 1]^3, writes t_near/t_far into the ray record (0, 0 on a miss), and
 // places N_SAMPLES stratified samples: t_i = t_near + (i + u_i) (t_far - t_near) / N, u_i = 1/2 or jittered by
 // (seed, ray, i). delta_i spans the midpoints to the neighbouring samples. positions: BatchMatrix, 3 columns.
+// Ray r is ray ray_first + ray_stride r of the global batch (its rank's share, relit/parallel.hpp): the jitter
+// follows the global index, so a batch split over ranks is jittered as in one process.
 __kernel void sample_rays(const uint n_rays, const uint jitter, const uint seed, __global float* restrict rays,
                           __global float* restrict t_out, __global float* restrict delta_out,
-                          __global float* restrict positions) {
+                          __global float* restrict positions, const uint ray_first, const uint ray_stride) {
   const uint r = get_global_id(0);
   if (r >= n_rays) return;
   __global float* ray = RAY_RECORD(rays, r);
@@ -129,7 +131,7 @@ __kernel void sample_rays(const uint n_rays, const uint jitter, const uint seed,
   // ends), so the deltas tile [t_near, t_far] exactly: a homogeneous medium transmits exp(-sigma d).
   float t_prev = 0.0f, lower = tn;
   for (uint i = 0; i < N_SAMPLES; ++i) {
-    const float u = jitter ? relit_uniform(relit_hash2(seed, r * N_SAMPLES + i)) : 0.5f;
+    const float u = jitter ? relit_uniform(relit_hash2(seed, (ray_first + ray_stride * r) * N_SAMPLES + i)) : 0.5f;
     const float t = fma((float)i + u, step, tn);
     const size_t s = (size_t)r * N_SAMPLES + i;
     t_out[s] = t;

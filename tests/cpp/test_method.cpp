@@ -433,6 +433,33 @@ TEST(Method, RadianceIsLinearInTheLightIntensity) {
   EXPECT_GT(total, 0.0);
 }
 
+// Data parallelism splits the density-grid refresh: rank r of N evaluates its contiguous 1/N of the voxels and
+// zeroes the rest, and the sum of the ranks' grids is the single-process grid, bit for bit (each voxel's σ does
+// not depend on which voxels are evaluated with it).
+TEST(Method, DensityGridRefreshSplitOverRanksSumsToTheWholeGrid) {
+  const Device dev = test::test_device();
+  method::Ours model(dev, tiny_model());
+  model.initialize(2);
+  model.refresh_density_grid();
+  const std::vector<float> whole = model.density_grid().sigma.read();
+  for (std::uint32_t n : {2u, 3u}) {
+    std::vector<double> sum(whole.size(), 0.0);
+    std::size_t nonzero_parts = 0;
+    for (std::uint32_t r = 0; r < n; ++r) {
+      model.refresh_density_grid({r, n});
+      const std::vector<float> part = model.density_grid().sigma.read();
+      std::size_t nonzero = 0;
+      for (std::size_t i = 0; i < part.size(); ++i) {
+        sum[i] += part[i];
+        nonzero += part[i] != 0.0f;
+      }
+      nonzero_parts += nonzero > 0 && nonzero < part.size();
+    }
+    EXPECT_EQ(nonzero_parts, n) << "every rank evaluates a part, none the whole";
+    for (std::size_t i = 0; i < whole.size(); ++i) ASSERT_EQ(float(sum[i]), whole[i]) << "voxel " << i << ", " << n;
+  }
+}
+
 TEST(Method, InferenceVisibilityCanMarchTheDensityGrid) {
   const Device dev = test::test_device();
   method::Ours model(dev, tiny_model());

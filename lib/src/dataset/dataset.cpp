@@ -4,6 +4,7 @@
 #include <relit/io/file.hpp>
 #include <relit/io/image.hpp>
 #include <relit/log.hpp>
+#include <relit/parallel.hpp>
 #include <relit/version.hpp>
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <numeric>
 #include <random>
 #include <set>
@@ -220,21 +222,27 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
   s.validate();
   const fs::path out = fs::path(out_dir).lexically_normal();
   if (out.empty()) throw InvalidArgument("the output folder is empty");
-  std::error_code ec;
-  const bool exists = fs::exists(fs::symlink_status(out, ec));
-  if (ec && ec != std::errc::no_such_file_or_directory)
-    throw IOError("cannot use output folder '" + out.string() + "': " + ec.message());
-  if (exists && !s.overwrite)
-    throw IOError("output folder '" + out.string() +
-                  "' already exists; choose another --out or pass --overwrite "
-                  "(the existing folder is left untouched)");
-  if (exists) check_replaceable_dataset(out);
+  // Under MPI the views are shared out over the ranks (relit/parallel.hpp); rank 0 alone checks the output
+  // folder and writes, in the single-process order, so the files are the same bytes whatever the ranks.
+  const bool writer = parallel::rank() == 0;
   const fs::path parent = out.has_parent_path() ? out.parent_path() : fs::path(".");
-  if (!fs::is_directory(parent, ec)) throw IOError("the parent folder of '" + out.string() + "' does not exist");
-  if (::access(parent.c_str(), W_OK | X_OK) != 0)
-    throw IOError("cannot write into '" + parent.string() +
-                  "', the parent folder of the dataset: " + std::strerror(errno));
-  io::remove_stale_temporaries(parent.string());  // what killed runs left behind
+  bool exists = false;
+  if (writer) {
+    std::error_code ec;
+    exists = fs::exists(fs::symlink_status(out, ec));
+    if (ec && ec != std::errc::no_such_file_or_directory)
+      throw IOError("cannot use output folder '" + out.string() + "': " + ec.message());
+    if (exists && !s.overwrite)
+      throw IOError("output folder '" + out.string() +
+                    "' already exists; choose another --out or pass --overwrite "
+                    "(the existing folder is left untouched)");
+    if (exists) check_replaceable_dataset(out);
+    if (!fs::is_directory(parent, ec)) throw IOError("the parent folder of '" + out.string() + "' does not exist");
+    if (::access(parent.c_str(), W_OK | X_OK) != 0)
+      throw IOError("cannot write into '" + parent.string() +
+                    "', the parent folder of the dataset: " + std::strerror(errno));
+    io::remove_stale_temporaries(parent.string());  // what killed runs left behind
+  }
 
   Scene scene = input_scene;
   Json scene_json = scene.description;
@@ -252,11 +260,44 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
   auto split_spp = [&](const std::string& name) {
     return (name == "test" || name.rfind("test_", 0) == 0) && s.test_spp ? s.test_spp : s.spp;
   };
+  // Every view in order, split by split, with the samples of the views before it (for the progress).
+  struct View {
+    const std::string* split;
+    std::size_t index;
+    std::uint64_t samples_before;
+  };
+  std::vector<View> views;
   std::uint64_t total = 0;
   for (const auto& [name, frames] : plan.splits)
-    total += frames.size() * std::uint64_t(s.resolution) * s.resolution * split_spp(name);
-  ProgressTracker tracker(progress, total, "samples");
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      views.push_back({&name, i, total});
+      total += std::uint64_t(s.resolution) * s.resolution * split_spp(name);
+    }
+  ProgressTracker tracker(writer ? progress : ProgressCallback(), total, "samples");
 
+  const PathTracer pt(device, scene);
+  // One view, path-traced: its RGBA pixels.
+  const auto render = [&](std::size_t v) {
+    const View& view = views[v];
+    const DatasetFrame& f = plan.splits.at(*view.split)[view.index];
+    PathTraceSettings rs;
+    rs.spp = split_spp(*view.split);
+    rs.max_bounces = s.max_bounces;
+    rs.seed = dataset_view_seed(s.seed, *view.split, view.index);
+    ProgressCallback per_view;  // without a callback, launches run back to back with no waiting
+    if (progress && writer)
+      per_view = [&](const Progress& p) {
+        tracker.update(view.samples_before + p.done, f.file_path.substr(0, f.file_path.size() - 4));
+        return true;
+      };
+    return pt.render(f.camera, {f.light}, rs, per_view).image.pixels;
+  };
+  if (!writer) {
+    parallel::share_out(views.size(), render, {});
+    return;
+  }
+
+  std::error_code ec;
   const fs::path tmp = parent / ("." + out.filename().string() + ".partial-" + std::to_string(::getpid()));
   if (!fs::create_directory(tmp, ec) || ec)
     throw IOError("cannot create the temporary folder '" + tmp.string() +
@@ -271,62 +312,59 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
     }
     io::write_file_atomic((tmp / "scene.json").string(), scene_json.dump(2) + "\n");
 
-    const PathTracer pt(device, scene);
-    PathTraceSettings rs;
-    rs.spp = s.spp;
-    rs.max_bounces = s.max_bounces;
-    std::uint64_t samples_done = 0;
+    std::map<std::string, Json> docs;  // transforms_<split>.json, frame by frame
     for (const auto& [name, frames] : plan.splits) {
       if (frames.empty()) continue;
-      rs.spp = split_spp(name);
-      const std::uint64_t view_samples = std::uint64_t(s.resolution) * s.resolution * rs.spp;
       fs::create_directories(tmp / name);
-      Json doc = {{"camera_angle_x", s.camera_angle_x},
-                  {"w", s.resolution},
-                  {"h", s.resolution},
-                  {"lighting", s.lighting},
-                  {"environment", env_json},
-                  {"scene", "scene.json"},
-                  {"spp", rs.spp},
-                  {"seed", s.seed},
-                  {"relit_version", relit::version()},
-                  {"frames", Json::array()}};
-      for (std::size_t i = 0; i < frames.size(); ++i) {
-        const DatasetFrame& f = frames[i];
-        rs.seed = dataset_view_seed(s.seed, name, i);
-        const std::string stem = f.file_path.substr(0, f.file_path.size() - 4);
-        const std::uint64_t base = samples_done;
-        ProgressCallback per_view;  // without a callback, launches run back to back with no waiting
-        if (progress)
-          per_view = [&](const Progress& p) {
-            tracker.update(base + p.done, stem);
-            return true;
-          };
-        const RenderResult r = pt.render(f.camera, {f.light}, rs, per_view);
-        write_image((tmp / f.file_path).string(), r.image);
-        if (s.previews) {
-          Image rgb(r.image.width, r.image.height, 3);
-          for (std::size_t p = 0; p < std::size_t(r.image.width) * r.image.height; ++p)
-            for (int c = 0; c < 3; ++c) {
-              const float v = std::max(r.image.pixels[p * 4 + c], 0.0f);
-              rgb.pixels[p * 3 + c] = v / (1.0f + v);  // Reinhard: highlights stay readable in 8 bits
-            }
-          write_image((tmp / (stem + ".png")).string(), rgb);
-        }
-        Json m = Json::array();
-        for (const auto& row : f.camera.transform) m.push_back(Json::array({row[0], row[1], row[2], row[3]}));
-        Json frame = {{"file_path", f.file_path},
-                      {"transform_matrix", m},
-                      {"light",
-                       {{"type", "point"},
-                        {"position", vec_json(f.light.position)},
-                        {"intensity", vec_json(f.light.intensity)}}}};
-        if (s.previews) frame["preview_path"] = stem + ".png";
-        doc["frames"].push_back(frame);
-        samples_done += view_samples;
-      }
-      io::write_file_atomic((tmp / ("transforms_" + name + ".json")).string(), doc.dump(2) + "\n");
+      docs[name] = {{"camera_angle_x", s.camera_angle_x},
+                    {"w", s.resolution},
+                    {"h", s.resolution},
+                    {"lighting", s.lighting},
+                    {"environment", env_json},
+                    {"scene", "scene.json"},
+                    {"spp", split_spp(name)},
+                    {"seed", s.seed},
+                    {"relit_version", relit::version()},
+                    {"frames", Json::array()}};
     }
+    const auto write_view = [&](std::size_t v, std::vector<float>&& pixels) {
+      const View& view = views[v];
+      const auto& frames = plan.splits.at(*view.split);
+      const DatasetFrame& f = frames[view.index];
+      Image image(s.resolution, s.resolution, 4);
+      if (pixels.size() != image.pixels.size())
+        throw ParallelError("view " + f.file_path + " arrived with " + std::to_string(pixels.size()) + " values, " +
+                            std::to_string(image.pixels.size()) + " expected (RGBA " + std::to_string(s.resolution) +
+                            "^2): ranks of different builds?");
+      image.pixels = std::move(pixels);
+      const std::string stem = f.file_path.substr(0, f.file_path.size() - 4);
+      write_image((tmp / f.file_path).string(), image);
+      if (s.previews) {
+        Image rgb(image.width, image.height, 3);
+        for (std::size_t p = 0; p < std::size_t(image.width) * image.height; ++p)
+          for (int c = 0; c < 3; ++c) {
+            const float x = std::max(image.pixels[p * 4 + c], 0.0f);
+            rgb.pixels[p * 3 + c] = x / (1.0f + x);  // Reinhard: highlights stay readable in 8 bits
+          }
+        write_image((tmp / (stem + ".png")).string(), rgb);
+      }
+      Json m = Json::array();
+      for (const auto& row : f.camera.transform) m.push_back(Json::array({row[0], row[1], row[2], row[3]}));
+      Json frame = {
+          {"file_path", f.file_path},
+          {"transform_matrix", m},
+          {"light",
+           {{"type", "point"}, {"position", vec_json(f.light.position)}, {"intensity", vec_json(f.light.intensity)}}}};
+      if (s.previews) frame["preview_path"] = stem + ".png";
+      Json& doc = docs.at(*view.split);
+      doc["frames"].push_back(frame);
+      if (progress)
+        tracker.update(
+            view.samples_before + std::uint64_t(s.resolution) * s.resolution * doc["spp"].get<std::uint32_t>(), stem);
+      if (view.index + 1 == frames.size())
+        io::write_file_atomic((tmp / ("transforms_" + *view.split + ".json")).string(), doc.dump(2) + "\n");
+    };
+    parallel::share_out(views.size(), render, write_view);
     // Complete: move it into place. An existing folder is replaced only now, and only on request.
     if (exists) {
       // Checked again now that the render is done: the folder may have changed meanwhile.

@@ -37,6 +37,7 @@ std::uint32_t NeuralReflectanceField::queries_per_ray() const {
 void NeuralReflectanceField::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays,
                                     const PassOptions& o) const {
   BiPass& pass = bi_pass(base);
+  pass.share = pass.coarse.share = o.share;
   draw_basis(pass, o);
   const Branch coarse = coarse_branch(), fine = fine_branch();
   forward_branch(pass.coarse, coarse, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(),
@@ -45,7 +46,7 @@ void NeuralReflectanceField::render(ModelPass& base, Buffer<float>& rays, std::u
   detail::ensure_size(pass.t_fine_only, m_device, std::size_t(n_rays) * n_fine_samples());
   sample_fine(m_device, rays, n_rays, coarse.n_samples, pass.coarse.t, pass.coarse.delta, pass.coarse.props,
               n_fine_samples(), o.training, o.jitter_seed ^ 0x5bd1e995u, pass.t_fine_only, pass.t, pass.delta,
-              pass.positions);
+              pass.positions, o.share);
   if (o.timer) o.timer->mark("hierarchical sampling");
   forward_branch(pass, fine, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(),
                  marches(o), o.timer, o.env, false);
@@ -72,7 +73,7 @@ void NeuralReflectanceField::backward(ModelPass& base, const Buffer<float>& rays
 void sample_fine(const Device& device, const Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t n_coarse,
                  const Buffer<float>& t_coarse, const Buffer<float>& delta_coarse, const nn::BatchMatrix& coarse_props,
                  std::uint32_t n_fine, bool jitter, std::uint32_t seed, Buffer<float>& t_fine_only, Buffer<float>& t,
-                 Buffer<float>& delta, nn::BatchMatrix& positions) {
+                 Buffer<float>& delta, nn::BatchMatrix& positions, parallel::Share share) {
   const std::size_t n_all = std::size_t(n_rays) * (n_coarse + n_fine);
   if (t.size() < n_all || delta.size() < n_all || positions.batch() < n_all || positions.cols() != 3 ||
       t_fine_only.size() < std::size_t(n_rays) * n_fine || coarse_props.batch() < std::size_t(n_rays) * n_coarse)
@@ -82,7 +83,7 @@ void sample_fine(const Device& device, const Buffer<float>& rays, std::uint32_t 
                         {"N_ALL", std::to_string(n_coarse + n_fine)}};
   device.kernel("hierarchical.cl", "sample_fine", defines)
       .args(n_rays, jitter ? 1u : 0u, seed, rays, t_coarse, delta_coarse, coarse_props.data(), coarse_props.cols(),
-            t_fine_only, t, delta, positions.data())
+            t_fine_only, t, delta, positions.data(), share.first, share.stride)
       .launch(n_rays, 16);
 }
 

@@ -34,6 +34,17 @@ inline std::uint32_t rays_in_share(std::uint32_t n_rays, float fraction) {
   return std::max<std::uint32_t>(1, std::min(n_rays, static_cast<std::uint32_t>(n_rays * double(fraction) + 0.5)));
 }
 
+/// The visibility net's training subset of a pass: the first rays_in_share(batch, fraction) rays of the global
+/// batch (`batch_rays`, 0: the pass's n_rays), and how many of them the pass holds (its `share`: every
+/// stride-th ray, so the subset's rays are the first `local` rays of the pass).
+struct Subset {
+  std::uint32_t local = 0, global = 0;
+};
+inline Subset visibility_subset(std::uint32_t n_rays, float fraction, parallel::Share share, std::uint32_t batch_rays) {
+  const std::uint32_t global = rays_in_share(batch_rays ? batch_rays : n_rays, fraction);
+  return {std::min(n_rays, share.count(global)), global};
+}
+
 /// Grows `b` to at least `count` floats (scratch reused across passes).
 inline void ensure_size(Buffer<float>& b, const Device& device, std::size_t count) {
   if (b.size() < count) b = Buffer<float>(device, count);

@@ -3,6 +3,7 @@
 #include <relit/dataset.hpp>
 #include <relit/method/render_image.hpp>
 #include <relit/metrics.hpp>
+#include <relit/parallel.hpp>
 
 #include <cstdint>
 
@@ -18,27 +19,41 @@ std::vector<report::ViewResult> evaluate(const Model& model, const std::string& 
     splits.push_back(load_split(dataset_dir, name, options.max_views));
     total += splits.back().size();
   }
+  // Every view in order; under MPI they are shared out over the ranks and rank 0 compares and writes the report
+  // (relit/parallel.hpp): each view is rendered with its own seed, so the report is the single-process one.
+  std::vector<std::pair<const DatasetSplit*, std::size_t>> order;
+  for (const auto& split : splits)
+    for (std::size_t i = 0; i < split.size(); ++i) order.emplace_back(&split, i);
+  const bool writer = parallel::rank() == 0;
   std::vector<report::ViewResult> views;
-  ProgressTracker tracker(progress, total, "views");
+  ProgressTracker tracker(writer ? progress : ProgressCallback(), total, "views");
   ImageRenderSettings rs;
   rs.visibility = options.visibility;
   rs.spp = options.spp;
-  for (const auto& split : splits)
-    for (std::size_t i = 0; i < split.size(); ++i) {
-      report::ViewResult v;
-      v.split = split.split;
-      v.name = split.names[i];
-      v.width = static_cast<std::uint32_t>(split.width);
-      v.height = static_cast<std::uint32_t>(split.height);
-      rs.seed = static_cast<std::uint32_t>(i);
-      rs.environment = split.environment.get();
-      Image img = render_image(model, split.cameras[i], split.lights[i], rs);
-      v.prediction = std::move(img.pixels);
-      v.reference = split.image(i);
-      v.metrics = metrics::compare(model.device(), v.prediction, v.reference, v.width, v.height, 3);
-      views.push_back(std::move(v));
-      tracker.update(views.size(), split.split + "/" + split.names[i]);
-    }
+  const auto render = [&](std::size_t k) {
+    const auto& [split, i] = order[k];
+    rs.seed = static_cast<std::uint32_t>(i);
+    rs.environment = split->environment.get();
+    return render_image(model, split->cameras[i], split->lights[i], rs).pixels;
+  };
+  const auto compare = [&](std::size_t k, std::vector<float>&& prediction) {
+    const auto& [split, i] = order[k];
+    report::ViewResult v;
+    v.split = split->split;
+    v.name = split->names[i];
+    v.width = static_cast<std::uint32_t>(split->width);
+    v.height = static_cast<std::uint32_t>(split->height);
+    v.prediction = std::move(prediction);
+    v.reference = split->image(i);
+    if (v.prediction.size() != v.reference.size())
+      throw ParallelError("view " + v.split + "/" + v.name + " arrived with " + std::to_string(v.prediction.size()) +
+                          " values, " + std::to_string(v.reference.size()) + " expected: ranks of different builds?");
+    v.metrics = metrics::compare(model.device(), v.prediction, v.reference, v.width, v.height, 3);
+    views.push_back(std::move(v));
+    tracker.update(views.size(), split->split + "/" + split->names[i]);
+  };
+  parallel::share_out(order.size(), render, compare);
+  if (!writer) return views;  // rank 0 holds the results and writes the report
   report::ReportOptions ro;
   ro.meta = meta;
   ro.write_predictions = ro.write_exr = options.write_images;

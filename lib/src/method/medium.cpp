@@ -152,7 +152,7 @@ void MediumModel::forward_branch(MediumPass& pass, const Branch& branch, Buffer<
   const std::uint32_t n = n_rays * spr;
   const std::uint32_t n_sh = m_renderer->n_sh();
   const render::VolumeRenderer& renderer = renderer_for(spr, n_env);
-  if (place_samples) renderer.sample(rays, n_rays, training, seed, pass.t, pass.delta, pass.positions);
+  if (place_samples) renderer.sample(rays, n_rays, training, seed, pass.t, pass.delta, pass.positions, pass.share);
   const std::uint32_t light_cols = n_sh > 0 ? pass.light_in.cols() : 0;
   Buffer<float>& light_data = n_sh > 0 ? pass.light_in.data() : pass.vis_in.data();
   m_device.kernel("method.cl", "light_inputs")
@@ -310,22 +310,33 @@ void MediumModel::backward_branch(MediumPass& pass, const Branch& branch, const 
   mark(timer, "property net backward");
 }
 
-void MediumModel::visibility_step(MediumPass& pass, const Buffer<float>& rays, const nn::Loss& loss,
-                                  Buffer<float>& value, float weight, StageTimer* timer,
-                                  const render::EnvironmentSamples* env) {
+double MediumModel::visibility_step(MediumPass& pass, const Buffer<float>& rays, const nn::Loss& loss,
+                                    Buffer<float>& value, float weight, StageTimer* timer,
+                                    const render::EnvironmentSamples* env, parallel::Share share,
+                                    std::uint32_t batch_rays) {
   check_pass(pass, "visibility_step");
   const std::uint32_t n_env = env ? env->size() : 0;
   if (n_env != pass.n_env)
     throw InvalidArgument("MediumModel::visibility_step: give the environment samples of the forward pass (" +
                           std::to_string(pass.n_env) + " directions), got " + std::to_string(n_env));
   const std::uint32_t spr = pass.n_samples;
-  auto subset = [&](float fraction) { return detail::rays_in_share(pass.n_rays, fraction); };
+  const detail::Subset point =
+      detail::visibility_subset(pass.n_rays, m_settings.visibility_fraction, share, batch_rays);
+  const detail::Subset environment =
+      detail::visibility_subset(pass.n_rays, m_settings.environment.visibility_fraction, share, batch_rays);
   // Rows [0, m): the samples of the first rays toward their point light; rows [m, m + m_env N_e): the samples of
   // the first rays toward each environment direction (sample-major). m is a multiple of 16, so the tiled
   // matrices of the two parts simply follow each other.
-  const std::uint32_t m = subset(m_settings.visibility_fraction) * spr;
-  const std::uint32_t m_env = n_env ? subset(m_settings.environment.visibility_fraction) * spr : 0;
+  const std::uint32_t m = point.local * spr;
+  const std::uint32_t m_env = n_env ? environment.local * spr : 0;
   const std::uint32_t rows = m + m_env * n_env;
+  const double global_rows = double(point.global) * spr + (n_env ? double(environment.global) * spr * n_env : 0.0);
+  const double fraction = double(rows) / global_rows;
+  if (rows == 0) {  // this rank holds none of the global batch's first rays (more ranks than such rays)
+    m_vis_grads.fill(0.0f);
+    value.fill(0.0f);
+    return 0.0;
+  }
   auto matrix = [&](nn::BatchMatrix& mat, std::uint32_t cols, std::uint32_t batch) {
     nn::ensure_rows(mat, m_device, batch, cols);
   };
@@ -361,23 +372,28 @@ void MediumModel::visibility_step(MediumPass& pass, const Buffer<float>& rays, c
   mark(timer, "visibility targets (march)");
   const nn::ConstParamSlice psi{&m_vis_params, 0};
   m_visibility->forward(m_device, psi, pass.vis_in_sub, pass.vis_sub, *pass.ws_visibility);
-  loss.evaluate(m_device, pass.vis_sub, pass.vis_target, pass.d_vis, value, weight);
+  loss.evaluate(m_device, pass.vis_sub, pass.vis_target, pass.d_vis, value, weight * float(fraction));
   m_visibility->backward(m_device, psi, pass.vis_in_sub, pass.vis_sub, pass.d_vis, {&m_vis_grads, 0}, false, nullptr,
                          *pass.ws_visibility);
   mark(timer, "visibility net training");
+  return fraction;
 }
 
-void MediumModel::refresh_density_grid() {
+void MediumModel::refresh_density_grid(parallel::Share share) {
   const auto& d = m_grid.dims;
   const std::uint32_t total = std::uint32_t(d[0]) * d[1] * d[2];
+  // This rank's voxels [lo, hi); each voxel's σ does not depend on which others are evaluated with it.
+  const std::uint32_t lo = std::uint32_t(std::uint64_t(total) * share.first / share.stride);
+  const std::uint32_t hi = std::uint32_t(std::uint64_t(total) * (share.first + 1) / share.stride);
+  if (!share.whole()) m_grid.sigma.fill(0.0f);
   const std::uint32_t chunk = std::min<std::uint32_t>(total, 1u << 17);
   if (m_grid_positions.cols() != 3) {
     m_grid_positions = nn::BatchMatrix(m_device, chunk, 3);
     m_grid_props = nn::BatchMatrix(m_device, chunk, prop_heads() + m_settings.n_features);
     m_grid_ws = m_property->make_workspace(m_device);
   }
-  for (std::uint32_t first = 0; first < total; first += chunk) {
-    const std::uint32_t n = std::min(chunk, total - first);
+  for (std::uint32_t first = lo; first < hi; first += chunk) {
+    const std::uint32_t n = std::min(chunk, hi - first);
     m_grid_positions.resize(n);
     m_grid_props.resize(n);
     m_device.kernel("method.cl", "grid_positions")
@@ -403,6 +419,7 @@ const MediumPass& medium_pass(const ModelPass& pass) { return medium_pass(const_
 
 void MediumModel::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& o) const {
   MediumPass& pass = medium_pass(base);
+  pass.share = o.share;
   draw_basis(pass, o);
   forward(pass, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(), marches(o), o.timer,
           o.env);
@@ -427,9 +444,9 @@ void MediumModel::backward(ModelPass& base, const Buffer<float>& rays,
   backward(pass, rays, pass.basis->dirs(), pass.basis->basis(), *d_colors[0], o.timer, o.env);
 }
 
-void MediumModel::train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss,
-                                   Buffer<float>& value, float weight, const PassOptions& o) {
-  visibility_step(medium_pass(pass), rays, loss, value, weight, o.timer, o.env);
+double MediumModel::train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss,
+                                     Buffer<float>& value, float weight, const PassOptions& o) {
+  return visibility_step(medium_pass(pass), rays, loss, value, weight, o.timer, o.env, o.share, o.batch_rays);
 }
 
 }  // namespace relit::method

@@ -306,17 +306,27 @@ void NeRV::backward(ModelPass& base, const Buffer<float>& rays, const std::vecto
   if (o.timer) o.timer->mark("indirect bounce backward");
 }
 
-void NeRV::train_visibility(ModelPass& base, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
-                            float weight, const PassOptions& o) {
+double NeRV::train_visibility(ModelPass& base, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
+                              float weight, const PassOptions& o) {
   (void)rays;
   NeRVPass& pass = nerv_pass(base);
   if (pass.n_bounce == 0) throw InvalidArgument("NeRV::train_visibility: no training render() before");
-  auto subset = [&](float fraction) { return detail::rays_in_share(pass.n_rays, fraction); };
+  const detail::Subset camera =
+      detail::visibility_subset(pass.n_rays, m_settings.visibility_fraction, o.share, o.batch_rays);
+  const detail::Subset bounce =
+      detail::visibility_subset(pass.n_rays, m_nerv.visibility_fraction, o.share, o.batch_rays);
   // Rows [0, m): camera samples toward their point light; rows [m, m + mb): the bounce queries of the first rays.
   // m is a multiple of 16, so the tiled rows of the two parts follow each other.
-  const std::uint32_t m = subset(m_settings.visibility_fraction) * pass.n_samples;
-  const std::uint32_t mb = subset(m_nerv.visibility_fraction) * pass.n_bounce;
+  const std::uint32_t m = camera.local * pass.n_samples;
+  const std::uint32_t mb = bounce.local * pass.n_bounce;
   const std::uint32_t rows = m + mb;
+  const double fraction =
+      double(rows) / (double(camera.global) * pass.n_samples + double(bounce.global) * pass.n_bounce);
+  if (rows == 0) {  // this rank holds none of the global batch's first rays
+    m_vis_grads.fill(0.0f);
+    value.fill(0.0f);
+    return 0.0;
+  }
   nn::ensure_rows(pass.train_in, m_device, rows, 6);
   nn::ensure_rows(pass.train_out, m_device, rows, 2);
   nn::ensure_rows(pass.train_target, m_device, rows, 2);
@@ -333,10 +343,11 @@ void NeRV::train_visibility(ModelPass& base, const Buffer<float>& rays, const nn
   if (o.timer) o.timer->mark("visibility targets (march)");
   const nn::ConstParamSlice psi{&m_vis_params, 0};
   m_visibility->forward(m_device, psi, pass.train_in, pass.train_out, *pass.ws_visibility);
-  loss.evaluate(m_device, pass.train_out, pass.train_target, pass.d_train, value, weight);
+  loss.evaluate(m_device, pass.train_out, pass.train_target, pass.d_train, value, weight * float(fraction));
   m_visibility->backward(m_device, psi, pass.train_in, pass.train_out, pass.d_train, {&m_vis_grads, 0}, false, nullptr,
                          *pass.ws_visibility);
   if (o.timer) o.timer->mark("visibility net training");
+  return fraction;
 }
 
 }  // namespace relit::method

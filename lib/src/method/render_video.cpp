@@ -1,4 +1,5 @@
 // Relighting videos: frames along camera and light paths, PNGs and an MP4.
+#include <relit/parallel.hpp>
 #include <relit/config.hpp>
 #include <relit/error.hpp>
 #include <relit/io/file.hpp>
@@ -110,17 +111,28 @@ std::vector<std::string> render_video(const Model& model, const std::vector<Keyf
       throw InvalidArgument("video frame " + std::to_string(i) + ": " + e.what());
     }
   }
-  ProgressTracker tracker(progress, frames.size(), "frames");
+  // Under MPI the frames are shared out over the ranks; rank 0 writes them all (relit/parallel.hpp).
+  const bool writer = parallel::rank() == 0;
+  ProgressTracker tracker(writer ? progress : ProgressCallback(), frames.size(), "frames");
   std::vector<std::string> paths;
   char suffix[32];
-  for (std::size_t i = 0; i < views.size(); ++i) {
-    tracker.update(i, "frame " + std::to_string(i));
-    const Image img = render_image(model, views[i].first, views[i].second, settings.render);
+  const auto render = [&](std::size_t i) {
+    return render_image(model, views[i].first, views[i].second, settings.render).pixels;
+  };
+  const auto write = [&](std::size_t i, std::vector<float>&& pixels) {
+    Image img(settings.width, settings.height, 3);
+    if (pixels.size() != img.pixels.size())
+      throw ParallelError("video frame " + std::to_string(i) + " arrived with " + std::to_string(pixels.size()) +
+                          " values, " + std::to_string(img.pixels.size()) + " expected: ranks of different builds?");
+    img.pixels = std::move(pixels);
     std::snprintf(suffix, sizeof suffix, "_%04zu.png", i);
     paths.push_back(prefix + suffix);
     write_image(paths.back(), img);
-  }
-  tracker.update(views.size(), "frames written");
+    tracker.update(i + 1, "frame " + std::to_string(i));
+  };
+  tracker.update(0, "frame 0");
+  parallel::share_out(views.size(), render, write);
+  if (!writer) return paths;
   if (settings.mp4) io::encode_mp4(prefix + "_%04d.png", settings.fps, prefix + ".mp4");
   return paths;
 }

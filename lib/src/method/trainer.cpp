@@ -1,5 +1,7 @@
 // Training of every method (Ours and the baselines): the step, its schedule (validation, logs, checkpoints),
 // and resuming from a checkpoint.
+#include "cl/kernel_sources.hpp"
+
 #include <relit/cl/program.hpp>
 #include <relit/io/file.hpp>
 #include <relit/log.hpp>
@@ -8,6 +10,7 @@
 #include <relit/method/trainer.hpp>
 #include <relit/metrics.hpp>
 #include <relit/nn/registry.hpp>
+#include <relit/parallel.hpp>
 
 #include <chrono>
 #include <cmath>
@@ -170,10 +173,26 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
   }
   m_pass = m_model->make_pass();
 
+  // Data parallelism: this rank's rays of each global batch; every rank must train the same run on the same data.
+  m_share = parallel::share();
+  if (m_settings.batch_rays < m_share.stride)
+    throw ConfigError("/training/batch_rays", "is " + std::to_string(m_settings.batch_rays) + ", fewer rays than the " +
+                                                  std::to_string(m_share.stride) + " MPI ranks that share each batch");
+  m_local_rays = m_share.count(m_settings.batch_rays);
+  if (parallel::distributed()) {
+    Json run = m_config;
+    run.erase("dataset");  // its path may differ from machine to machine; its images are compared below
+    parallel::check_same("the run config", run.dump());
+    std::string data;
+    data.append(reinterpret_cast<const char*>(train.images.data()), train.images.size() * sizeof(float));
+    parallel::check_same("the training data (" + dataset_dir + ", a hash of its images)",
+                         std::to_string(train.size()) + " views, " + std::to_string(relit::detail::fnv1a(data)));
+  }
+
   m_model->initialize(m_settings.seed);
   m_optimizer->allocate(device, m_model->n_params());
   m_vis_optimizer->allocate(device, m_model->n_vis_params());
-  const std::uint32_t b = m_settings.batch_rays;
+  const std::uint32_t b = m_local_rays;
   m_ray_buf = Buffer<float>(device, std::size_t(b) * render::kRayFloats);
   m_targets = Buffer<float>(device, 3 * std::size_t(b));
   for (std::uint32_t i = 0; i < m_model->n_colors(); ++i) m_d_colors.emplace_back(device, 3 * std::size_t(b));
@@ -193,6 +212,7 @@ Trainer::Trainer(const Device& device, const std::string& dataset_dir, const Jso
 }
 
 void Trainer::set_output(const std::string& dir) {
+  if (parallel::rank() != 0) return;  // rank 0 writes the run
   io::create_directories(dir, "run folder");
   io::remove_stale_temporaries(dir);
   m_out = dir;
@@ -201,13 +221,24 @@ void Trainer::set_output(const std::string& dir) {
 
 void Trainer::step() {
   const auto& s = m_settings;
-  const std::uint32_t b = s.batch_rays;
+  const std::uint32_t b = m_local_rays;                         // this rank's rays of the global batch of s.batch_rays
+  const float batch_fraction = float(b) / float(s.batch_rays);  // 1 in one process
   const std::uint32_t seed = step_seed(s.seed, m_step);
   StageTimer* timer = m_timer.enabled() ? &m_timer : nullptr;
   if (timer) timer->start();
-  if (m_step % m_model->grid_refresh_every() == 0) m_model->refresh_density_grid();
+  if (m_step % m_model->grid_refresh_every() == 0) {
+    // Split over the ranks: each evaluates its part of the voxels, the others' are zero, and the sum is the grid.
+    m_model->refresh_density_grid(m_share);
+    if (parallel::distributed()) {
+      Buffer<float>& sigma = m_model->density_grid().sigma;
+      m_reduction.resize(sigma.size());
+      sigma.read(m_reduction.data(), sigma.size());
+      parallel::sum(m_reduction.data(), sigma.size(), "the density-grid refresh");
+      sigma.write(m_reduction.data(), sigma.size());
+    }
+  }
   if (timer) timer->mark("density grid refresh");
-  m_rays->training_batch(b, s.seed, static_cast<std::uint32_t>(m_step), m_ray_buf, m_targets, m_pixel_ids);
+  m_rays->training_batch(b, s.seed, static_cast<std::uint32_t>(m_step), m_ray_buf, m_targets, m_pixel_ids, m_share);
   if (m_env) {
     m_env->draw(s.seed, static_cast<std::uint32_t>(m_step));
     m_env->fill_background(m_ray_buf, b);
@@ -219,6 +250,8 @@ void Trainer::step() {
   o.jitter_seed = seed;
   o.env = m_env.get();
   o.timer = timer;
+  o.share = m_share;
+  o.batch_rays = s.batch_rays;
   m_model->render(*m_pass, m_ray_buf, b, o);
   // Render loss on the pixel colours (every colour the model renders; the last is its image).
   rows_to_tiled(m_device, m_targets, b, m_target_t);
@@ -227,19 +260,47 @@ void Trainer::step() {
   const std::uint32_t n_colors = m_model->n_colors();
   for (std::uint32_t i = 0; i < n_colors; ++i) {
     rows_to_tiled(m_device, m_model->color(*m_pass, i), b, m_color_t);
-    m_loss->evaluate(m_device, m_color_t, m_target_t, m_d_color_t, i + 1 == n_colors ? m_loss_value : m_aux_loss_value);
+    m_loss->evaluate(m_device, m_color_t, m_target_t, m_d_color_t, i + 1 == n_colors ? m_loss_value : m_aux_loss_value,
+                     batch_fraction);
     tiled_to_rows(m_device, m_d_color_t, m_d_colors[i]);
     d_colors.push_back(&m_d_colors[i]);
   }
   if (timer) timer->mark("render loss");
   m_model->backward(*m_pass, m_ray_buf, d_colors, o);
   // Visibility loss against the density march (constants: θ gets nothing), backward into ψ only.
-  m_model->train_visibility(*m_pass, m_ray_buf, *m_vis_loss, m_vis_loss_value, s.visibility_loss_weight, o);
+  const double visibility_fraction =
+      m_model->train_visibility(*m_pass, m_ray_buf, *m_vis_loss, m_vis_loss_value, s.visibility_loss_weight, o);
+  if (parallel::distributed()) {
+    reduce_over_ranks(batch_fraction, visibility_fraction);
+    if (timer) timer->mark("gradient reduction (MPI)");
+  }
   m_device.kernel("method.cl", "step_guard").args(m_loss_value, m_vis_loss_value, m_guard, m_skipped).launch(1, 1);
   m_optimizer->step(m_model->params(), m_model->grads());
   m_vis_optimizer->step(m_model->vis_params(), m_model->vis_grads());
   if (timer) timer->mark("Adam");
   ++m_step;
+}
+
+// Each rank's gradients and losses are its share of the global batch's (the losses weighted by that share): their
+// sum over the ranks, in rank order, is the single-process step's up to float rounding.
+void Trainer::reduce_over_ranks(float batch_fraction, double visibility_fraction) {
+  const std::size_t np = m_model->n_params(), nv = m_model->n_vis_params();
+  m_reduction.resize(np + nv + 3);
+  float* v = m_reduction.data();
+  m_model->grads().read(v, np);
+  m_model->vis_grads().read(v + np, nv);
+  m_loss_value.read(v + np + nv, 1);
+  m_aux_loss_value.read(v + np + nv + 1, 1);
+  m_vis_loss_value.read(v + np + nv + 2, 1);
+  v[np + nv] *= batch_fraction;
+  v[np + nv + 1] *= batch_fraction;
+  v[np + nv + 2] = float(v[np + nv + 2] * visibility_fraction);
+  parallel::sum(v, m_reduction.size(), "the gradient reduction of a training step");
+  m_model->grads().write(v, np);
+  m_model->vis_grads().write(v + np, nv);
+  m_loss_value.write(v + np + nv, 1);
+  m_aux_loss_value.write(v + np + nv + 1, 1);
+  m_vis_loss_value.write(v + np + nv + 2, 1);
 }
 
 TrainStats Trainer::stats() const {
@@ -335,13 +396,14 @@ TrainStats Trainer::run_until(std::uint64_t target, const TrainCallback& callbac
     const bool last = m_step == target;
     bool validated = false;
     if (m_settings.validate_every && (m_step % m_settings.validate_every == 0 || last)) {
-      validate();
+      if (parallel::rank() == 0) validate();  // the other ranks go on to the next step's reduction meanwhile
       validated = true;
     }
     const bool reports = m_step % m_settings.log_every == 0 || last || validated;
     if (reports) measure();
     if (last || (m_settings.checkpoint_every && m_step % m_settings.checkpoint_every == 0)) checkpoint();
-    if (reports && callback && !callback(st)) break;
+    // Every rank runs the callback; rank 0's answer holds for all (a time budget, a stop request).
+    if (reports && callback && !parallel::broadcast(callback(st), "the decision to go on training")) break;
   }
   if (m_step == first) {
     measure();

@@ -62,13 +62,13 @@ RaySource::RaySource(const Device& device, const std::vector<Camera>& cameras, c
 }
 
 void RaySource::training_batch(std::uint32_t n_rays, std::uint32_t seed, std::uint32_t iteration, Buffer<float>& rays,
-                               Buffer<float>& targets, Buffer<std::uint32_t>& pixel_ids) const {
+                               Buffer<float>& targets, Buffer<std::uint32_t>& pixel_ids, parallel::Share share) const {
   if (rays.size() < std::size_t(n_rays) * kRayFloats || targets.size() < 3 * std::size_t(n_rays) ||
       pixel_ids.size() < n_rays)
     throw InvalidArgument("RaySource::training_batch: buffers too small for " + std::to_string(n_rays) + " rays");
   m_device.kernel("rays.cl", "training_rays")
       .args(n_rays, seed, iteration, m_n_images, m_width, m_height, m_cameras, m_lights, m_images, rays, targets,
-            pixel_ids)
+            pixel_ids, share.first, share.stride)
       .launch(n_rays, 16);
 }
 

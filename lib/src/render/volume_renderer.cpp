@@ -108,13 +108,14 @@ void VolumeRenderer::check(std::uint32_t n_rays, const nn::BatchMatrix& props, c
 }
 
 void VolumeRenderer::sample(Buffer<float>& rays, std::uint32_t n_rays, bool jitter, std::uint32_t seed,
-                            Buffer<float>& t, Buffer<float>& delta, nn::BatchMatrix& positions) const {
+                            Buffer<float>& t, Buffer<float>& delta, nn::BatchMatrix& positions,
+                            parallel::Share share) const {
   const std::size_t n = std::size_t(n_rays) * m_settings.n_samples;
   if (rays.size() < std::size_t(n_rays) * kRayFloats || t.size() < n || delta.size() < n || positions.cols() != 3)
     throw InvalidArgument("VolumeRenderer::sample: buffers too small for " + std::to_string(n_rays) + " rays");
   positions.resize(static_cast<std::uint32_t>(n));
   m_device.kernel("render.cl", "sample_rays", m_defines)
-      .args(n_rays, std::uint32_t(jitter), seed, rays, t, delta, positions.data())
+      .args(n_rays, std::uint32_t(jitter), seed, rays, t, delta, positions.data(), share.first, share.stride)
       .launch(n_rays, 16);
 }
 

@@ -65,6 +65,6 @@ class NeuralReflectanceField : public MediumModel {
 void sample_fine(const Device& device, const Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t n_coarse,
                  const Buffer<float>& t_coarse, const Buffer<float>& delta_coarse, const nn::BatchMatrix& coarse_props,
                  std::uint32_t n_fine, bool jitter, std::uint32_t seed, Buffer<float>& t_fine_only, Buffer<float>& t,
-                 Buffer<float>& delta, nn::BatchMatrix& positions);
+                 Buffer<float>& delta, nn::BatchMatrix& positions, parallel::Share share = {});
 
 }  // namespace relit::method

@@ -175,12 +175,15 @@ class MediumModel : public Model {
   /// nothing); after an environment forward pass, also on the samples of the first
   /// environment.visibility_fraction of rays toward each environment direction. Writes dL/dψ into
   /// vis_grads() (overwriting) and the mean loss over all these queries into `value` (on the device).
-  void visibility_step(MediumPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
-                       float weight = 1.0f, StageTimer* timer = nullptr,
-                       const render::EnvironmentSamples* env = nullptr);
+  /// Under data parallelism the first rays are those of the global batch of `batch_rays` rays, of which the pass
+  /// holds `share`; returns the fraction of the global queries it trained on (Model::train_visibility()).
+  double visibility_step(MediumPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
+                         float weight = 1.0f, StageTimer* timer = nullptr,
+                         const render::EnvironmentSamples* env = nullptr, parallel::Share share = {},
+                         std::uint32_t batch_rays = 0);
 
   /// Re-evaluates the density grid from the current θ (the property net's σ at the voxel centres).
-  void refresh_density_grid() override;
+  void refresh_density_grid(parallel::Share share = {}) override;
   std::uint32_t grid_refresh_every() const override { return m_settings.grid_refresh; }
 
   bool has_environment() const override { return m_settings.environment.enabled; }
@@ -194,8 +197,8 @@ class MediumModel : public Model {
   const Buffer<float>& color(const ModelPass& pass, std::uint32_t i) const override;
   void backward(ModelPass& pass, const Buffer<float>& rays, const std::vector<const Buffer<float>*>& d_colors,
                 const PassOptions& options) override;
-  void train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
-                        float weight, const PassOptions& options) override;
+  double train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
+                          float weight, const PassOptions& options) override;
 
  protected:
   /// A method's constructor gives its parts and calls build() (so that its overrides take part).

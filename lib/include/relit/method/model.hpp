@@ -15,6 +15,7 @@
 //   model->backward(*pass, rays, {&d_fine}, options);
 #pragma once
 
+#include <relit/parallel.hpp>
 #include <relit/cl/buffer.hpp>
 #include <relit/config.hpp>
 #include <relit/nn/loss.hpp>
@@ -56,6 +57,7 @@ class ModelPass {
  public:
   virtual ~ModelPass() = default;
   std::uint32_t n_rays = 0;
+  parallel::Share share;  ///< which rays of the global batch this pass holds (PassOptions::share of render())
 };
 
 /// How a pass runs.
@@ -69,6 +71,12 @@ struct PassOptions {
   /// environment; null renders under the point light alone.
   const render::EnvironmentSamples* env = nullptr;
   StageTimer* timer = nullptr;
+  /// Data parallelism (relit/parallel.hpp): the pass's rays are rays share.first, share.first + share.stride, ...
+  /// of a global batch of `batch_rays` rays (0: the pass's own n_rays, one process). The sample jitter and the
+  /// visibility net's training subset follow the global ray index, so the ranks' passes together are the
+  /// single-process pass.
+  parallel::Share share;
+  std::uint32_t batch_rays = 0;
 };
 
 class Model {
@@ -92,8 +100,10 @@ class Model {
   /// Re-initialises both parameter buffers deterministically from `seed`.
   virtual void initialize(std::uint64_t seed) = 0;
 
-  /// Re-evaluates the density grid of the visibility targets from the current θ.
-  virtual void refresh_density_grid() = 0;
+  /// Re-evaluates the density grid of the visibility targets from the current θ. With a `share` of several ranks
+  /// (relit/parallel.hpp), only rank share.first's contiguous 1/share.stride of the voxels, the others set to 0:
+  /// the sum of the ranks' grids is the whole grid (Trainer sums them).
+  virtual void refresh_density_grid(parallel::Share share = {}) = 0;
   /// Training steps between density-grid refreshes.
   virtual std::uint32_t grid_refresh_every() const = 0;
   const render::DensityGrid& density_grid() const { return m_grid; }
@@ -123,8 +133,10 @@ class Model {
                         const PassOptions& options) = 0;
   /// The visibility loss of the last training pass against density-grid marches (constants, so θ gets
   /// nothing): writes dL/dψ into vis_grads() (overwriting) and the mean loss into `value` (on the device).
-  virtual void train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
-                                float weight, const PassOptions& options) = 0;
+  /// Returns the fraction of the global batch's visibility queries this pass trained on (1 in one process):
+  /// the loss and dL/dψ are this pass's mean times that fraction, so the ranks' results add up to the global ones.
+  virtual double train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss,
+                                  Buffer<float>& value, float weight, const PassOptions& options) = 0;
 
  protected:
   Model() = default;

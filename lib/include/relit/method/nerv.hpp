@@ -64,8 +64,8 @@ class NeRV : public MediumModel {
   const Buffer<float>& color(const ModelPass& pass, std::uint32_t i) const override;
   void backward(ModelPass& pass, const Buffer<float>& rays, const std::vector<const Buffer<float>*>& d_colors,
                 const PassOptions& options) override;
-  void train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
-                        float weight, const PassOptions& options) override;
+  double train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,
+                          float weight, const PassOptions& options) override;
 
  protected:
   void configure_method(config::Reader& r, config::Docs* docs) override;  // "bounce"

@@ -72,6 +72,9 @@ class Trainer {
   /// (a run config; unknown keys and bad values are ConfigErrors).
   Trainer(const Device& device, const std::string& dataset_dir, const Json& config);
 
+  /// Under MPI (relit/parallel.hpp) every rank trains on its share of each batch and the gradients are summed in
+  /// rank order before Adam, so all ranks hold the same parameters; only rank 0 writes (set_output() is a no-op
+  /// on the others) and validates, and rank 0's callback decides when to stop.
   /// Writes `dir`/config.json (the resolved config) now, and checkpoints (`dir`/checkpoint.relit, the latest)
   /// and log.jsonl lines as training goes. Log lines are appended only after the checkpoint that holds their
   /// step is written, so the log never records steps the checkpoint lacks. Creates `dir`; removes the
@@ -107,6 +110,7 @@ class Trainer {
   const Model& model() const { return *m_model; }
 
  private:
+  void reduce_over_ranks(float batch_fraction, double visibility_fraction);
   void write_log(const TrainStats& s);
   void flush_log();
   void trim_log(std::uint64_t last_step) const;
@@ -126,6 +130,9 @@ class Trainer {
   Buffer<float> m_ray_buf, m_targets, m_loss_value, m_aux_loss_value, m_vis_loss_value, m_guard;
   Buffer<std::uint32_t> m_pixel_ids, m_skipped;
   nn::BatchMatrix m_color_t, m_target_t, m_d_color_t;
+  parallel::Share m_share;         // this rank's rays of each global batch (all of them in one process)
+  std::uint32_t m_local_rays = 0;  // m_share.count(batch_rays)
+  std::vector<float> m_reduction;  // host staging of the gradients summed over ranks
   std::uint64_t m_step = 0;
   double m_val_psnr = std::numeric_limits<double>::quiet_NaN();
   StageTimer m_timer;

@@ -5,6 +5,7 @@
 // device from (seed, iteration, ray), so an iteration needs no host round trip and a run is reproducible.
 #pragma once
 
+#include <relit/parallel.hpp>
 #include <relit/cl/buffer.hpp>
 #include <relit/layout.clh>
 #include <relit/scene/camera.hpp>
@@ -33,9 +34,10 @@ class RaySource {
   std::uint32_t width() const { return m_width; }
   std::uint32_t height() const { return m_height; }
 
-  /// Fills `rays` (kRayFloats per ray), `targets` (3 per ray) and `pixel_ids` (image * W * H + pixel).
+  /// Fills `rays` (kRayFloats per ray), `targets` (3 per ray) and `pixel_ids` (image * W * H + pixel). With a
+  /// `share` of a global batch (relit/parallel.hpp), the n_rays rays are its rays share.first + share.stride j.
   void training_batch(std::uint32_t n_rays, std::uint32_t seed, std::uint32_t iteration, Buffer<float>& rays,
-                      Buffer<float>& targets, Buffer<std::uint32_t>& pixel_ids) const;
+                      Buffer<float>& targets, Buffer<std::uint32_t>& pixel_ids, parallel::Share share = {}) const;
 
  private:
   Device m_device;

@@ -16,6 +16,7 @@
 // which the kernels share). Sample s = ray * n_samples + i.
 #pragma once
 
+#include <relit/parallel.hpp>
 #include <relit/cl/buffer.hpp>
 #include <relit/layout.clh>
 #include <relit/nn/batch.hpp>
@@ -83,8 +84,9 @@ class VolumeRenderer {
 
   /// Intersects the rays with [-1, 1]^3 (writing t_near/t_far into the records) and places the samples.
   /// `jitter` draws each sample uniformly in its stratum from (seed, ray, sample); otherwise stratum centres.
+  /// The ray index is the global one: rays share.first + share.stride r of a batch split over ranks.
   void sample(Buffer<float>& rays, std::uint32_t n_rays, bool jitter, std::uint32_t seed, Buffer<float>& t,
-              Buffer<float>& delta, nn::BatchMatrix& positions) const;
+              Buffer<float>& delta, nn::BatchMatrix& positions, parallel::Share share = {}) const;
 
   /// `dirs`: the n_dirs unit directions of the indirect sum (n_dirs x 3); `sh_basis`: Y_j(dir_k) (n_dirs x
   /// n_sh). IndirectBasis draws both on the device. With closed_form_indirect, `sh_basis` is view_basis()'s
