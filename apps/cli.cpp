@@ -3,6 +3,7 @@
 
 #include <relit/error.hpp>
 #include <relit/log.hpp>
+#include <relit/parallel.hpp>
 #include <relit/version.hpp>
 
 #include <cstdlib>
@@ -63,17 +64,19 @@ int run(const std::vector<std::string>& args) {
     const int code = app.exit(e);
     return code == 0 || dynamic_cast<const CLI::RuntimeError*>(&e) ? code : 2;
   } catch (const relit::Error& e) {
-    std::cerr << "relit: error: " << e.what() << '\n';
+    std::cerr << "relit: error: " << parallel::rank_prefix() << e.what() << '\n';
     return 1;
   } catch (const std::filesystem::filesystem_error& e) {
-    std::cerr << "relit: error: " << e.code().message() << ": '" << e.path1().string() << "'"
+    std::cerr << "relit: error: " << parallel::rank_prefix() << e.code().message() << ": '" << e.path1().string() << "'"
               << (e.path2().empty() ? "" : " → '" + e.path2().string() + "'") << '\n';
     return 1;
   } catch (const std::bad_alloc&) {
-    std::cerr << "relit: error: out of host memory (use a smaller resolution, batch or view count)\n";
+    std::cerr << "relit: error: " << parallel::rank_prefix()
+              << "out of host memory (use a smaller resolution, batch or view count)\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << "relit: error: " << e.what() << " (an unexpected error: please report it)\n";
+    std::cerr << "relit: error: " << parallel::rank_prefix() << e.what()
+              << " (an unexpected error: please report it)\n";
     return 1;
   } catch (...) {
     std::cerr << "relit: error: an unknown exception (please report it)\n";

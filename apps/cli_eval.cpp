@@ -9,6 +9,7 @@
 #include <relit/io/checkpoint.hpp>
 #include <relit/method/evaluate.hpp>
 #include <relit/method/model_io.hpp>
+#include <relit/parallel.hpp>
 #include <relit/report.hpp>
 
 #include <filesystem>
@@ -53,6 +54,7 @@ int run_eval(const EvalOptions& o) {
   ProgressBar bar("eval");
   const auto views = method::evaluate(*model, dataset, out, eo, meta, [&](const Progress& p) { return bar(p); });
   bar.finish();
+  if (parallel::rank() != 0) return 0;  // rank 0 holds the views and wrote the report
   std::cout << report::format_summary_lines(views) << "report written to " << out
             << " (metrics.json, metrics.md, contact sheets)\n";
   return 0;

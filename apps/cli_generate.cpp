@@ -5,6 +5,7 @@
 #include <relit/cl/device.hpp>
 #include <relit/dataset.hpp>
 #include <relit/error.hpp>
+#include <relit/parallel.hpp>
 
 #include <iostream>
 
@@ -36,8 +37,10 @@ int run_generate(Options& o) {
   const Device device = Device::select(o.device);
   const Scene scene = Scene::builtin_or_file(o.scene, s.seed, o.scene_resolution);
   std::size_t views = s.train + s.val + s.test + (s.generalization ? 8 * s.generalization_views : 0);
-  std::cerr << "relit generate: " << views << " views of '" << o.scene << "' at " << s.resolution << "x" << s.resolution
-            << ", " << s.spp << " spp, lighting " << s.lighting << ", on " << device.info().name << "\n";
+  if (parallel::rank() == 0)
+    std::cerr << "relit generate: " << views << " views of '" << o.scene << "' at " << s.resolution << "x"
+              << s.resolution << ", " << s.spp << " spp, lighting " << s.lighting << ", on " << device.info().name
+              << "\n";
   ProgressBar bar("generate");
   generate_dataset(device, scene, o.out, s, [&](const Progress& p) { return bar(p); });
   bar.finish();

@@ -2,6 +2,7 @@
 #include "cli.hpp"
 #include "progress_bar.hpp"
 
+#include <relit/parallel.hpp>
 #include <relit/cl/device.hpp>
 #include <relit/dataset.hpp>
 #include <relit/error.hpp>
@@ -75,6 +76,7 @@ int run_video(const method::Model& model, const RenderOptions& o) {
   ProgressBar bar("render");
   const auto paths = method::render_video(model, frames, prefix, vs, [&](const Progress& p) { return bar(p); });
   bar.finish();
+  if (parallel::rank() != 0) return 0;  // the frames were shared out; rank 0 wrote them
   std::cout << paths.size() << " frames written to " << prefix << "_0000.png ... "
             << fs::path(paths.back()).filename().string() << (vs.mp4 ? ", video to " + prefix + ".mp4" : std::string())
             << "\n";
@@ -129,6 +131,7 @@ int run_render(const RenderOptions& o) {
     environment =
         std::make_shared<const EnvironmentLight>(read_image(o.environment), o.env_scale, o.env_visible, o.environment);
   }
+  if (parallel::rank() != 0) return 0;  // one image: rank 0 renders it (video frames are shared out)
   ProgressBar bar("render");
   method::ImageRenderSettings rs;
   rs.visibility = o.visibility;

@@ -9,6 +9,7 @@
 #include <relit/method/model.hpp>
 #include <relit/method/presets.hpp>
 #include <relit/method/trainer.hpp>
+#include <relit/parallel.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -76,9 +77,10 @@ int run_train(const TrainOptions& o) {
   trainer.set_output(o.out);
   if (o.resume) trainer.load_checkpoint(checkpoint);
   const std::uint64_t target = o.steps ? std::uint64_t(*o.steps) : trainer.settings().steps;
-  std::cerr << "relit train: " << o.dataset << " → " << o.out << ", " << trainer.model().n_params() << " + "
-            << trainer.model().n_vis_params() << " parameters, steps " << trainer.steps() << " → " << target << ", on "
-            << device.info().name << "\n";
+  if (parallel::rank() == 0)
+    std::cerr << "relit train: " << o.dataset << " → " << o.out << ", " << trainer.model().n_params() << " + "
+              << trainer.model().n_vis_params() << " parameters, steps " << trainer.steps() << " → " << target
+              << ", on " << device.info().name << "\n";
   ProgressBar bar("train");
   const auto start_step = trainer.steps();
   bool out_of_time = false;

@@ -1,6 +1,8 @@
 // Progress bar on stderr (see progress_bar.hpp).
 #include "progress_bar.hpp"
 
+#include <relit/parallel.hpp>
+
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -49,6 +51,7 @@ std::string ProgressBar::clock(double s) {
 }
 
 bool ProgressBar::operator()(const Progress& p) {
+  if (parallel::rank() != 0) return true;  // one bar per job: rank 0's
   const bool last = p.total && p.done >= p.total;
   if (!m_tty && !last && p.elapsed - m_last < m_interval) return true;
   m_last = p.elapsed;

@@ -48,7 +48,7 @@ void raise_with_attributes(PyObject* cls, const std::string& message,
 
 // The exception classes; the translator below must be a plain function, so they live here.
 struct Classes {
-  PyObject *error, *invalid, *config, *io, *device, *cl_error, *build;
+  PyObject *error, *invalid, *config, *io, *device, *cl_error, *build, *parallel;
 };
 Classes classes;
 
@@ -67,6 +67,8 @@ void translate(std::exception_ptr p) {
     raise_with_attributes(c.cl_error, e.what(), {{"code", py::int_(e.code())}, {"call", py::str(e.call())}});
   } catch (const relit::DeviceError& e) {
     PyErr_SetString(c.device, e.what());
+  } catch (const relit::ParallelError& e) {
+    PyErr_SetString(c.parallel, e.what());
   } catch (const relit::ConfigError& e) {
     raise_with_attributes(c.config, e.what(), {{"pointer", py::str(e.pointer())}});
   } catch (const relit::InvalidArgument& e) {
@@ -106,7 +108,9 @@ void register_exceptions(py::module_& m) {
   PyObject* cl_error = new_exception(m, "ClError", tuple_of({device}), "A failed OpenCL call; .code is its status.");
   PyObject* build = new_exception(m, "BuildError", tuple_of({device}),
                                   "A kernel failed to compile; .log, .options, .device and .source_path say why.");
-  classes = {error, invalid, config, io, device, cl_error, build};
+  PyObject* parallel = new_exception(m, "ParallelError", tuple_of({error, PyExc_RuntimeError}),
+                                     "Another MPI rank failed or did not answer in time.");
+  classes = {error, invalid, config, io, device, cl_error, build, parallel};
   py::register_exception_translator(&translate);
 }
 

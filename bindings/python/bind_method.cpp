@@ -86,6 +86,13 @@ py::array_t<float> render(const method::Model& model, const Camera& camera, cons
   return a;
 }
 
+// A 1-D float32 array of `v`.
+py::array_t<float> vector_array(const std::vector<float>& v) {
+  py::array_t<float> a(std::vector<py::ssize_t>{py::ssize_t(v.size())});
+  std::copy(v.begin(), v.end(), a.mutable_data());
+  return a;
+}
+
 // A (res, res, res[, 3]) array indexed [z, y, x] of the values `v` (x fastest).
 py::array_t<float> volume(const std::vector<float>& v, int res, int channels) {
   std::vector<py::ssize_t> shape{res, res, res};
@@ -287,6 +294,12 @@ void bind_method(py::module_& m) {
       .def_property_readonly("method", &method::Model::method, "the method: \"ours\", \"bi\" or \"nerv\"")
       .def_property_readonly("n_params", &method::Model::n_params)
       .def_property_readonly("n_visibility_params", &method::Model::n_vis_params)
+      .def(
+          "parameters", [](method::Model& o) { return vector_array(o.params().read()); },
+          "A copy of θ (the property net, the SH head, ...): float32, n_params values.")
+      .def(
+          "visibility_parameters", [](method::Model& o) { return vector_array(o.vis_params().read()); },
+          "A copy of ψ (the visibility net): float32, n_visibility_params values.")
       .def_property_readonly("config", [](const method::Model& o) { return json_to_python(o.hyperparams()); });
 
   py::class_<RunIterator>(m, "_RunIterator")

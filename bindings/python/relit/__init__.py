@@ -46,3 +46,26 @@ __all__ += ["export_mitsuba", "export_vdb", "render_orbit", "render_path", "samp
 from ._core import contact_sheet, write_report  # noqa: F401,E402
 
 __all__ += ["contact_sheet", "write_report"]
+
+# Data parallelism (docs/scaling.md): under mpirun every Python process is a rank, and relit.Trainer,
+# generate_dataset and write_report share their work out as the relit program does. MPI starts on import and
+# ends at exit: cleanly after a script that ended normally; after an uncaught exception by ending the whole job,
+# since the other ranks would otherwise wait for this one.
+from ._core import ParallelError, parallel  # noqa: F401,E402
+
+__all__ += ["ParallelError", "parallel"]
+
+parallel.init()
+if parallel.size() > 1:
+    import atexit as _atexit
+    import sys as _sys
+
+    _failed = []
+    _previous_hook = _sys.excepthook
+
+    def _note_failure(kind, value, traceback):
+        _failed.append(kind)
+        _previous_hook(kind, value, traceback)
+
+    _sys.excepthook = _note_failure
+    _atexit.register(lambda: parallel.abort(1) if _failed else parallel.finalize())
