@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -18,9 +19,10 @@ import relit
 APP = os.environ.get("RELIT_APP", "relit")
 MPIEXEC = os.environ.get("RELIT_MPIEXEC", "mpirun")
 # Open MPI refuses root without these (containers, CI); the single-copy mechanism needs ptrace rights that
-# containers lack.
+# containers lack, and /dev/shm (where shared-memory transport keeps its files) is small in containers.
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
-           "OMPI_MCA_btl_vader_single_copy_mechanism": "none", "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+           "OMPI_MCA_btl_vader_single_copy_mechanism": "none", "OMPI_MCA_rmaps_base_oversubscribe": "1",
+           "OMPI_MCA_btl_vader_backing_directory": tempfile.gettempdir()}
 
 GENERATE = ["generate", "--scene", "cloud", "--resolution", "16", "--train", "4", "--val", "1", "--test", "3",
             "--spp", "4", "--scene-resolution", "16"]

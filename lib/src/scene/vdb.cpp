@@ -84,8 +84,10 @@ Grid load_vdb_world(const std::string& path, const std::string& grid_name, int r
   Grid out;
   const auto fill = [&](const auto& grid, int channels) {
     out = Grid(resolution, resolution, resolution, channels);
-    openvdb::tools::GridSampler<typename std::decay_t<decltype(*grid)>::ConstAccessor, openvdb::tools::BoxSampler>
-        sampler(grid->getConstAccessor(), grid->transform());
+    // The sampler keeps a reference to its accessor: a temporary one would be gone before the first sample.
+    using Accessor = typename std::decay_t<decltype(*grid)>::ConstAccessor;
+    const Accessor accessor = grid->getConstAccessor();
+    openvdb::tools::GridSampler<Accessor, openvdb::tools::BoxSampler> sampler(accessor, grid->transform());
     for (int k = 0; k < resolution; ++k)
       for (int j = 0; j < resolution; ++j)
         for (int i = 0; i < resolution; ++i) {
