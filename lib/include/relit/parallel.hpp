@@ -4,9 +4,9 @@
 //   mpirun -np 4 relit train data/cloud --out runs/cloud     # the global batch split over 4 ranks
 //   mpirun -np 4 relit generate --scene cloud --out data/c   # views shared out, files as from one process
 //
-// relit starts MPI only when an MPI launcher started the process (mpirun/mpiexec of Open MPI or MPICH, srun);
-// otherwise, or when relit was built without MPI, there is one rank, every collective below returns at once and
-// relit behaves exactly as a single process. Every collective waits at most timeout() seconds for the other ranks
+// relit starts MPI only when an MPI launcher started the process (mpirun/mpiexec of Open MPI or MPICH, srun with
+// PMI-2); otherwise, or when relit was built without MPI, there is one rank, every collective below returns at once
+// and relit behaves exactly as a single process. Every collective waits at most timeout() seconds for the other ranks
 // (RELIT_MPI_TIMEOUT), then ends the whole job with an error naming the rank and the operation: a rank that dies
 // or hangs never leaves the others waiting for ever.
 #pragma once

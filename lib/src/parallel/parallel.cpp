@@ -34,15 +34,16 @@ int env_int(const char* name, int fallback) {
 }
 
 int launcher_size() {
-  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE", "MV2_COMM_WORLD_SIZE"})
+  // Open MPI's mpirun, MPICH/Hydra and Slurm's srun (PMI), MVAPICH. A Slurm batch script without srun is one process.
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "MV2_COMM_WORLD_SIZE"})
     if (const int n = env_int(name, 0); n > 0) return n;
-  return env_int("SLURM_STEP_NUM_TASKS", 0) > 0 && std::getenv("SLURM_PROCID") ? env_int("SLURM_STEP_NUM_TASKS", 1) : 0;
+  return 0;
 }
 
 int launcher_local(bool size) {
   const char* names[] = {size ? "OMPI_COMM_WORLD_LOCAL_SIZE" : "OMPI_COMM_WORLD_LOCAL_RANK",
                          size ? "MPI_LOCALNRANKS" : "MPI_LOCALRANKID",
-                         size ? "SLURM_NTASKS_PER_NODE" : "SLURM_LOCALID"};
+                         size ? "MV2_COMM_WORLD_LOCAL_SIZE" : "MV2_COMM_WORLD_LOCAL_RANK"};
   for (const char* name : names)
     if (const int n = env_int(name, -1); n >= 0) return n;
   return size ? 1 : 0;
