@@ -46,20 +46,19 @@ def tree(folder):
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(Path(folder).rglob("*")) if p.is_file()}
 
 
-def small_config(tmp, method="ours", preset="fast", linear=True, steps=20):
+def small_config(tmp, method="ours"):
     """A run config small enough for a test: a density-grid refresh every 8 steps, the learning rate decaying every
-    8, validation and checkpoints every 10, and a batch of 501 rays (the ranks get 251 and 250). linear: Adam with
+    8, validation and checkpoints every 10, and a batch of 501 rays (the ranks get 251 and 250). Adam with
     epsilon 1, whose update is nearly linear in the gradient, so that the parameters of two runs differ as their
     gradients do (with epsilon 1e-15 Adam takes the sign of each gradient, and a rounding difference in a gradient
     near zero flips a step of the full learning rate)."""
-    config = relit.preset(preset if method == "ours" else f"{method}-{preset}")
+    config = relit.preset("fast" if method == "ours" else f"{method}-fast")
     model = config["model"]
     model["renderer"].update({"n_samples": 32, "n_fine_samples": 32} if method == "bi" else {"n_samples": 32, "n_dirs": 16})
     model["density_grid"].update({"resolution": 32, "refresh_every": 8})
     model["property"]["encoding"].update({"n_levels": 8, "log2_hashmap_size": 14})
-    adam = {"type": "Adam", "learning_rate": 1.0 if linear else 0.01, "epsilon": 1.0 if linear else 1e-15,
-            "decay_rate": 0.5, "decay_steps": 8}
-    config["training"].update({"batch_rays": 501, "steps": steps, "log_every": 5, "validate_every": 10,
+    adam = {"type": "Adam", "learning_rate": 1.0, "epsilon": 1.0, "decay_rate": 0.5, "decay_steps": 8}
+    config["training"].update({"batch_rays": 501, "steps": 20, "log_every": 5, "validate_every": 10,
                                "validation_views": 1, "checkpoint_every": 10, "optimizer": adam,
                                "visibility_optimizer": adam})
     path = Path(tmp) / f"{method}.json"

@@ -49,10 +49,8 @@ double timeout();
 /// in double precision, so the result is reproducible for a given number of ranks. `what` names the operation
 /// in errors. A reduce-scatter + all-gather: each rank sends and receives about 2 (N-1)/N of the data.
 void sum(float* values, std::size_t n, const char* what);
-void sum(std::vector<double>& values, const char* what);
 /// Rank 0's value, on every rank.
 bool broadcast(bool value, const char* what);
-std::string broadcast(const std::string& value, const char* what);
 /// Every rank's string in rank order, on every rank.
 std::vector<std::string> all_gather(const std::string& value, const char* what);
 /// Throws InvalidArgument (on every rank) when the ranks disagree on `value`, naming `what` and the first rank
@@ -62,8 +60,10 @@ void check_same(const std::string& what, const std::string& value);
 /// Items [0, n) shared out round-robin: rank r produces items r, r + N, r + 2N, ...; rank 0 then consumes every
 /// item in order 0, 1, ..., n - 1, its own and those the other ranks send it. `consume` runs on rank 0 only,
 /// so output files are written by one process in one order, byte-identical to a 1-rank run. Items are float
-/// vectors (an image); they cross the network once.
-void share_out(std::size_t n, const std::function<std::vector<float>(std::size_t)>& produce,
+/// vectors (an image) of item_size(i) values, checked on arrival (ParallelError: ranks of different builds or data);
+/// they cross the network once.
+void share_out(std::size_t n, const std::function<std::size_t(std::size_t)>& item_size,
+               const std::function<std::vector<float>(std::size_t)>& produce,
                const std::function<void(std::size_t, std::vector<float>&&)>& consume);
 
 /// The part of a batch of consecutive items that one rank takes: the items `first`, `first + stride`, ... of the

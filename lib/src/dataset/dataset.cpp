@@ -292,8 +292,9 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
       };
     return pt.render(f.camera, {f.light}, rs, per_view).image.pixels;
   };
+  const auto view_size = [&](std::size_t) { return std::size_t(s.resolution) * s.resolution * 4; };  // RGBA
   if (!writer) {
-    parallel::share_out(views.size(), render, {});
+    parallel::share_out(views.size(), view_size, render, {});
     return;
   }
 
@@ -332,10 +333,6 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
       const auto& frames = plan.splits.at(*view.split);
       const DatasetFrame& f = frames[view.index];
       Image image(s.resolution, s.resolution, 4);
-      if (pixels.size() != image.pixels.size())
-        throw ParallelError("view " + f.file_path + " arrived with " + std::to_string(pixels.size()) + " values, " +
-                            std::to_string(image.pixels.size()) + " expected (RGBA " + std::to_string(s.resolution) +
-                            "^2): ranks of different builds?");
       image.pixels = std::move(pixels);
       const std::string stem = f.file_path.substr(0, f.file_path.size() - 4);
       write_image((tmp / f.file_path).string(), image);
@@ -364,7 +361,7 @@ void generate_dataset(const Device& device, const Scene& input_scene, const std:
       if (view.index + 1 == frames.size())
         io::write_file_atomic((tmp / ("transforms_" + *view.split + ".json")).string(), doc.dump(2) + "\n");
     };
-    parallel::share_out(views.size(), render, write_view);
+    parallel::share_out(views.size(), view_size, render, write_view);
     // Complete: move it into place. An existing folder is replaced only now, and only on request.
     if (exists) {
       // Checked again now that the render is done: the folder may have changed meanwhile.

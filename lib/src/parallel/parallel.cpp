@@ -129,7 +129,6 @@ void init() {
     int provided = 0;
     if (MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS)
       throw ParallelError("MPI_Init failed (started by an MPI launcher, " + std::to_string(launched) + " ranks)");
-    s.started = true;
   }
   MPI_Comm_dup(MPI_COMM_WORLD, &s.world);
   MPI_Comm_set_errhandler(s.world, MPI_ERRORS_RETURN);
@@ -199,24 +198,6 @@ double timeout() {
 
 Share share() { return {static_cast<std::uint32_t>(rank()), static_cast<std::uint32_t>(size())}; }
 
-void sum(std::vector<double>& values, const char* what) {
-  if (!distributed() || values.empty()) return;
-#ifdef RELIT_WITH_MPI
-  const int n = size();
-  std::vector<double> all(values.size() * std::size_t(n));
-  MPI_Request request;
-  check(MPI_Iallgather(values.data(), int(values.size()), MPI_DOUBLE, all.data(), int(values.size()), MPI_DOUBLE,
-                       comm(), &request),
-        "MPI_Iallgather", what);
-  wait(request, what);
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    double acc = 0;
-    for (int r = 0; r < n; ++r) acc += all[std::size_t(r) * values.size() + i];  // rank order
-    values[i] = acc;
-  }
-#endif
-}
-
 void sum(float* values, std::size_t count, const char* what) {
   if (!distributed() || count == 0) return;
 #ifdef RELIT_WITH_MPI
@@ -278,21 +259,6 @@ std::vector<std::string> all_gather(const std::string& value, const char* what) 
   return out;
 }
 
-std::string broadcast(const std::string& value, const char* what) {
-  if (!distributed()) return value;
-  std::string out = value;
-#ifdef RELIT_WITH_MPI
-  long long length = static_cast<long long>(value.size());
-  MPI_Request request;
-  check(MPI_Ibcast(&length, 1, MPI_LONG_LONG, 0, comm(), &request), "MPI_Ibcast", what);
-  wait(request, what);
-  out.resize(std::size_t(length));
-  check(MPI_Ibcast(out.data(), int(length), MPI_CHAR, 0, comm(), &request), "MPI_Ibcast", what);
-  wait(request, what);
-#endif
-  return out;
-}
-
 bool broadcast(bool value, const char* what) {
   if (!distributed()) return value;
   int v = value ? 1 : 0;
@@ -314,10 +280,17 @@ void check_same(const std::string& what, const std::string& value) {
                             "'. Every rank must run the same relit build with the same arguments and data");
 }
 
-void share_out(std::size_t n, const std::function<std::vector<float>(std::size_t)>& produce,
+void share_out(std::size_t n, const std::function<std::size_t(std::size_t)>& item_size,
+               const std::function<std::vector<float>(std::size_t)>& produce,
                const std::function<void(std::size_t, std::vector<float>&&)>& consume) {
+  const auto checked = [&](std::size_t i, std::vector<float>&& item) {
+    if (item.size() != item_size(i))
+      throw ParallelError("item " + std::to_string(i) + " of a shared-out job has " + std::to_string(item.size()) +
+                          " values, " + std::to_string(item_size(i)) + " expected: ranks of different builds or data?");
+    consume(i, std::move(item));
+  };
   if (!distributed()) {
-    for (std::size_t i = 0; i < n; ++i) consume(i, produce(i));
+    for (std::size_t i = 0; i < n; ++i) checked(i, produce(i));
     return;
   }
 #ifdef RELIT_WITH_MPI
@@ -340,7 +313,7 @@ void share_out(std::size_t n, const std::function<std::vector<float>(std::size_t
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t owner = i % ranks;
     if (owner == 0) {
-      consume(i, produce(i));
+      checked(i, produce(i));
       continue;
     }
     long long length = 0;
@@ -351,7 +324,7 @@ void share_out(std::size_t n, const std::function<std::vector<float>(std::size_t
     std::vector<float> item(static_cast<std::size_t>(length));
     check(MPI_Irecv(item.data(), int(length), MPI_FLOAT, int(owner), tag, comm(), &request), "MPI_Irecv", what.c_str());
     wait(request, what.c_str());
-    consume(i, std::move(item));
+    checked(i, std::move(item));
   }
 #endif
 }
