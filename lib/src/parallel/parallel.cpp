@@ -198,7 +198,7 @@ double timeout() {
 
 Share share() { return {static_cast<std::uint32_t>(rank()), static_cast<std::uint32_t>(size())}; }
 
-void sum(float* values, std::size_t count, const char* what) {
+void sum([[maybe_unused]] float* values, std::size_t count, [[maybe_unused]] const char* what) {
   if (!distributed() || count == 0) return;
 #ifdef RELIT_WITH_MPI
   const int n = size(), me = rank();
@@ -234,7 +234,7 @@ void sum(float* values, std::size_t count, const char* what) {
 #endif
 }
 
-std::vector<std::string> all_gather(const std::string& value, const char* what) {
+std::vector<std::string> all_gather(const std::string& value, [[maybe_unused]] const char* what) {
   if (!distributed()) return {value};
   std::vector<std::string> out;
 #ifdef RELIT_WITH_MPI
@@ -259,7 +259,7 @@ std::vector<std::string> all_gather(const std::string& value, const char* what) 
   return out;
 }
 
-bool broadcast(bool value, const char* what) {
+bool broadcast(bool value, [[maybe_unused]] const char* what) {
   if (!distributed()) return value;
   int v = value ? 1 : 0;
 #ifdef RELIT_WITH_MPI
