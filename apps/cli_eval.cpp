@@ -1,4 +1,5 @@
-// relit eval: relight a run's test views and report PSNR/SSIM (metrics.json, metrics.md, contact sheets).
+// relit eval: relight a run's test views and report their metrics (metrics.json, metrics.md, contact sheets), or
+// compare two folders of images the same way.
 #include "cli.hpp"
 #include "cli_method.hpp"
 #include "progress_bar.hpp"
@@ -30,7 +31,34 @@ std::vector<std::string> default_splits(const std::string& dataset) {
 
 }  // namespace
 
+// relit eval --predictions DIR --references DIR: another renderer's images against references, the same report.
+int run_compare_folders(const EvalOptions& o) {
+  if (o.out.empty()) throw InvalidArgument("eval --predictions needs --out DIR: the folder to write the report into");
+  const Device device = Device::select(o.device);
+  ProgressBar bar("eval");
+  const auto result =
+      report::compare_folders(device, o.predictions, o.references, [&](const Progress& p) { return bar(p); });
+  bar.finish();
+  if (!result.unmatched_predictions.empty())
+    std::cerr << "relit: " << result.unmatched_predictions.size() << " image"
+              << (result.unmatched_predictions.size() == 1 ? "" : "s") << " under " << o.predictions
+              << " match no reference and are not compared (e.g. " << result.unmatched_predictions.front() << ")\n";
+  report::ReportOptions ro;
+  ro.meta = Json{{"predictions", o.predictions}, {"references", o.references}, {"device", device.info().name}};
+  report::write_report(o.out, result.views, ro);
+  std::cout << report::format_summary_lines(result.views) << "report written to " << o.out
+            << " (metrics.json, metrics.md, contact sheets)\n";
+  return 0;
+}
+
 int run_eval(const EvalOptions& o) {
+  if (!o.predictions.empty() || !o.references.empty()) {
+    if (o.predictions.empty() || o.references.empty())
+      throw InvalidArgument("eval: give both --predictions DIR and --references DIR (or a run folder)");
+    if (!o.run.empty()) throw InvalidArgument("eval: give a run folder or --predictions/--references, not both");
+    return run_compare_folders(o);
+  }
+  if (o.run.empty()) throw InvalidArgument("eval: give a run folder (or --predictions DIR --references DIR)");
   const Device device = Device::select(o.device);
   const std::string checkpoint = (fs::path(o.run) / "checkpoint.relit").string();
   const auto model = method::load_model(device, checkpoint);
@@ -62,9 +90,14 @@ int run_eval(const EvalOptions& o) {
 
 void add_eval_command(CLI::App& app) {
   auto o = std::make_shared<EvalOptions>();
-  auto* cmd =
-      app.add_subcommand("eval", "relight a run's test views and report PSNR/SSIM (JSON, Markdown, contact sheets)");
-  cmd->add_option("run", o->run, "run folder written by relit train")->required();
+  auto* cmd = app.add_subcommand("eval",
+                                 "relight a run's test views (or compare any renderer's images) and report PSNR/SSIM, "
+                                 "the object's metrics (JSON, Markdown, contact sheets)");
+  cmd->add_option("run", o->run, "run folder written by relit train");
+  cmd->add_option("--predictions", o->predictions,
+                  "compare this folder's images with --references instead of rendering a run (any renderer's; "
+                  "paired by split folder and file name)");
+  cmd->add_option("--references", o->references, "reference images: a relit dataset folder or any folder of images");
   cmd->add_option("--dataset", o->dataset, "dataset folder (default: the run's)");
   cmd->add_option("--split", o->splits, "splits to evaluate (default: test and every test_* set)");
   cmd->add_option("--max-views", o->max_views, "at most this many views per split (0: all)")

@@ -22,6 +22,7 @@ int run_train(const TrainOptions& o);
 
 struct EvalOptions {
   std::string run, dataset, out, device, visibility;
+  std::string predictions, references;  ///< compare two folders of images instead of rendering a run
   std::vector<std::string> splits;
   std::size_t max_views = 0;
   std::uint32_t spp = 1;

@@ -25,7 +25,7 @@ std::string ProgressBar::si(double v) {
   else if (v >= 1e3)
     std::snprintf(buf, sizeof buf, "%.1fk", v / 1e3);
   else
-    std::snprintf(buf, sizeof buf, "%.0f", v);
+    std::snprintf(buf, sizeof buf, v < 10 ? "%.1f" : "%.0f", v);  // 1.4 views/s, not "1 views/s"
   return buf;
 }
 

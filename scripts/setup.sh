@@ -24,6 +24,7 @@ debian_packages=(
   libopenvdb-dev libboost-iostreams-dev                           # OpenVDB volume import (its CMake module needs Boost.Iostreams)
   libopenvdb-tools                                                # vdb_print: the export test reads relit's .vdb files with it
   ffmpeg                                                          # relighting videos (MP4) and ffprobe for their test
+  fonts-dejavu-core                                               # the contact sheets' titles and captions (OpenImageIO draws them)
   libopenmpi-dev openmpi-bin                                      # data parallelism over MPI ranks (mpirun)
   python3-dev python3-venv python3-pip                            # Python headers and venv
 )

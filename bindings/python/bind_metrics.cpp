@@ -1,4 +1,4 @@
-// Python binding of the image metrics: relit.metrics.compare / psnr / ssim on numpy images.
+// Python binding of the image metrics: relit.metrics.compare / psnr / ssim / object_mask on numpy images.
 #include "bindings.hpp"
 #include "convert.hpp"
 
@@ -15,7 +15,10 @@ namespace relit::python {
 namespace {
 using Image = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
-metrics::ImageComparison compare(const Image& prediction, const Image& reference, const py::object& device) {
+using Mask = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
+
+metrics::ImageComparison compare(const Image& prediction, const Image& reference, const py::object& device,
+                                 const py::object& mask = py::none()) {
   if (prediction.ndim() < 2 || prediction.ndim() > 3)
     throw InvalidArgument("images must be (height, width) or (height, width, channels) arrays");
   for (py::ssize_t i = 0; i < prediction.ndim(); ++i)
@@ -23,28 +26,70 @@ metrics::ImageComparison compare(const Image& prediction, const Image& reference
       throw InvalidArgument("prediction and reference must have the same shape");
   const auto h = static_cast<std::uint32_t>(prediction.shape(0)), w = static_cast<std::uint32_t>(prediction.shape(1));
   const auto c = prediction.ndim() == 3 ? static_cast<std::uint32_t>(prediction.shape(2)) : 1u;
+  std::vector<std::uint8_t> m;
+  if (!mask.is_none()) {
+    const auto arr = mask.cast<Mask>();
+    if (arr.ndim() != 2 || arr.shape(0) != prediction.shape(0) || arr.shape(1) != prediction.shape(1))
+      throw InvalidArgument("the mask must be a (height, width) array of the images' size");
+    m.assign(arr.data(), arr.data() + arr.size());
+  }
   const Device dev = device_arg(device);
   std::vector<float> a(prediction.data(), prediction.data() + prediction.size());
   std::vector<float> b(reference.data(), reference.data() + reference.size());
   py::gil_scoped_release release;
-  return metrics::compare(dev, a, b, w, h, c);
+  return metrics::compare(dev, a, b, w, h, c, mask.is_none() ? nullptr : &m);
 }
 }  // namespace
 
 void bind_metrics(py::module_& root) {
-  py::module_ m = root.def_submodule("metrics", "PSNR and SSIM on clamped, sRGB-encoded images (computed in OpenCL).");
+  py::module_ m = root.def_submodule(
+      "metrics", "Image metrics computed in OpenCL: PSNR and SSIM on clamped sRGB, over the image and the object.");
   m.def(
       "compare",
-      [](const Image& p, const Image& r, const py::object& device) {
-        const auto c = compare(p, r, device);
+      [](const Image& p, const Image& r, const py::object& device, const py::object& mask) {
+        const auto c = compare(p, r, device, mask);
         py::dict d;
         d["mse"] = c.mse;
         d["psnr"] = c.psnr;
         d["ssim"] = c.ssim;
+        py::dict o;
+        o["pixels"] = c.object.pixels;
+        o["fraction"] = c.object.fraction;
+        o["mse"] = c.object.mse;
+        o["psnr"] = c.object.psnr;
+        o["ssim"] = c.object.ssim;
+        o["rel_mse"] = c.object.rel_mse;
+        o["clipped"] = c.object.clipped;
+        d["object"] = o;
         return d;
       },
-      py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none(),
-      "Linear float images (H, W[, C]) → {'mse', 'psnr', 'ssim'} of their clamped sRGB encodings.");
+      py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none(), py::arg("mask") = py::none(),
+      "Linear float images (H, W[, C]) → {'mse', 'psnr', 'ssim', 'object': {...}}: PSNR/SSIM of their "
+      "clamped sRGB encodings over the image, and over the object's pixels (mask: (H, W), nonzero on the object; "
+      "see object_mask) with the linear relative MSE and the share of clipped reference pixels. NaN where there "
+      "is no object pixel.");
+  m.def(
+      "object_mask",
+      [](const py::object& reference_alpha, const py::object& prediction_alpha) {
+        const auto as_vector = [](const py::object& a) {
+          if (a.is_none()) return std::pair<std::vector<float>, std::vector<py::ssize_t>>{};
+          const auto arr = a.cast<Image>();
+          if (arr.ndim() != 2) throw InvalidArgument("an alpha must be a (height, width) array");
+          return std::pair{std::vector<float>(arr.data(), arr.data() + arr.size()),
+                           std::vector<py::ssize_t>{arr.shape(0), arr.shape(1)}};
+        };
+        const auto [ra, rs] = as_vector(reference_alpha);
+        const auto [pa, ps] = as_vector(prediction_alpha);
+        if (rs.empty() && ps.empty()) throw InvalidArgument("object_mask: give at least one alpha");
+        if (!rs.empty() && !ps.empty() && rs != ps) throw InvalidArgument("object_mask: the alphas differ in shape");
+        const auto& shape = rs.empty() ? ps : rs;
+        const auto mask = metrics::object_mask(ra, pa, std::size_t(shape[0] * shape[1]));
+        py::array_t<bool> out({shape[0], shape[1]});
+        std::copy(mask.begin(), mask.end(), out.mutable_data());
+        return out;
+      },
+      py::arg("reference_alpha"), py::arg("prediction_alpha") = py::none(),
+      "The object's pixels: where the reference's or the prediction's alpha (H, W) exceeds 0.01.");
   m.def(
       "psnr", [](const Image& p, const Image& r, const py::object& device) { return compare(p, r, device).psnr; },
       py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none());

@@ -54,10 +54,22 @@ std::vector<float> image_of(const py::object& value, const std::string& where, c
   return std::vector<float>(a.data(), a.data() + a.size());
 }
 
-// The views as the library's; metrics are computed on `device` for views without them when `need_metrics`.
+// An optional (height, width) alpha of a view.
+std::vector<float> alpha_of(const py::object& value, const std::string& where, const char* key, std::uint32_t w,
+                            std::uint32_t h) {
+  if (value.is_none()) return {};
+  const FloatArray a = FloatArray::ensure(value);
+  if (!a || a.ndim() != 2 || a.shape(0) != py::ssize_t(h) || a.shape(1) != py::ssize_t(w))
+    throw InvalidArgument(where + ": '" + key + "' must be a (height, width) array of the images' size");
+  return std::vector<float>(a.data(), a.data() + a.size());
+}
+
+// The views as the library's; metrics are computed on `device` for views without them when `need_metrics`
+// (with the object's metrics where a view has a 'reference_alpha' or 'prediction_alpha').
 std::vector<report::ViewResult> views_from(const py::iterable& items, bool need_metrics, const py::object& device) {
   std::vector<report::ViewResult> views;
   std::vector<std::size_t> missing;  // views whose metrics are to be computed
+  std::vector<std::vector<std::uint8_t>> masks;
   std::size_t index = 0;
   for (const py::handle item : items) {
     report::ViewResult v;
@@ -67,6 +79,10 @@ std::vector<report::ViewResult> views_from(const py::iterable& items, bool need_
     const std::string where = "views[" + std::to_string(index) + "] ('" + v.split + "/" + v.name + "')";
     v.prediction = image_of(field(item, "prediction"), where, "prediction", v.width, v.height);
     v.reference = image_of(field(item, "reference"), where, "reference", v.width, v.height);
+    masks.push_back(
+        metrics::object_mask(alpha_of(field(item, "reference_alpha"), where, "reference_alpha", v.width, v.height),
+                             alpha_of(field(item, "prediction_alpha"), where, "prediction_alpha", v.width, v.height),
+                             std::size_t(v.width) * v.height));
 
     py::object source = field(item, "metrics");
     if (source.is_none()) source = py::reinterpret_borrow<py::object>(item);
@@ -90,7 +106,7 @@ std::vector<report::ViewResult> views_from(const py::iterable& items, bool need_
     py::gil_scoped_release release;
     for (std::size_t i : missing) {
       auto& v = views[i];
-      v.metrics = metrics::compare(dev, v.prediction, v.reference, v.width, v.height, 3);
+      v.metrics = metrics::compare(dev, v.prediction, v.reference, v.width, v.height, 3, &masks[i]);
     }
   }
   return views;
@@ -134,11 +150,12 @@ void bind_report(py::module_& m) {
       "<split>/<name>.png / .exr. Every file is written atomically.\n\n"
       "views: dicts or objects with 'prediction' and 'reference' (linear float (H, W, 3) arrays), 'split'\n"
       "(default 'test'), 'name' (default: the index) and optionally 'psnr', 'ssim', 'mse' (or 'metrics'\n"
-      "holding them); missing metrics are computed with relit.metrics on `device`.\n"
+      "holding them); missing metrics are computed with relit.metrics on `device`, over\n"
+      "the object too where a view has 'reference_alpha' / 'prediction_alpha' ((H, W)).\n"
       "Returns the summary lines to print (one per split, then 'PSNR <mean>' and 'SSIM <mean>').");
   m.def(
       "contact_sheet",
-      [](const py::iterable& views, std::size_t max_rows, float error_scale, int gutter, bool srgb) {
+      [](const py::iterable& views, std::size_t max_rows, float error_scale, int gutter, bool srgb, bool labels) {
         const auto v = views_from(views, false, py::none());
         std::vector<const report::ViewResult*> ptrs;
         for (const auto& x : v) ptrs.push_back(&x);
@@ -146,6 +163,7 @@ void bind_report(py::module_& m) {
         o.max_rows = max_rows;
         o.error_scale = error_scale;
         o.gutter = gutter;
+        o.labels = labels;
         Image sheet = report::contact_sheet(ptrs, o);
         if (srgb)
           for (float& x : sheet.pixels) x = linear_to_srgb(x);
@@ -154,11 +172,12 @@ void bind_report(py::module_& m) {
         return a;
       },
       py::arg("views"), py::arg("max_rows") = 8, py::arg("error_scale") = 0.25f, py::arg("gutter") = 4,
-      py::arg("srgb") = false,
+      py::arg("srgb") = false, py::arg("labels") = true,
       "The contact sheet of views (as for write_report; metrics are not needed): one row per view (at most\n"
       "max_rows, spread evenly), prediction | reference | error, as float32 (H, W, 3). Linear by default (as\n"
       "relit writes images); srgb=True returns the display values. The error panel maps the mean absolute\n"
-      "difference of the sRGB images through 'inferno', error_scale at the top.");
+      "difference of the sRGB images through 'inferno', error_scale at the top. labels: column titles, each\n"
+      "row's name and PSNR, and the colour bar (False: the panels alone).");
 }
 
 }  // namespace relit::python

@@ -597,6 +597,10 @@ Json tiny_config(const std::string& method) {
   model["property"]["encoding"] = {{"type", "HashGrid"},      {"n_levels", 6},        {"n_features_per_level", 2},
                                    {"log2_hashmap_size", 14}, {"base_resolution", 4}, {"per_level_scale", 1.5}};
   if (method == "bi") model["coarse"]["encoding"] = model["property"]["encoding"];
+  // Bi et al. oscillates at Adam's 1e-2 on this scene (its loss jumps between 0.02 and 1.3 from step 200 on, and
+  // the last step's PSNR swung from 26.9 to 23.3 dB between an AVX-512 and an AVX2 CPU); at 5e-3 it settles
+  // (26.1 dB). The other methods are best at 1e-2 (5e-3: 1-2 dB lower).
+  const double lr = method == "bi" ? 5e-3 : 1e-2;
   return {{"method", method},
           {"model", model},
           {"training",
@@ -604,7 +608,8 @@ Json tiny_config(const std::string& method) {
             {"validate_every", 100000},
             {"checkpoint_every", 0},
             {"log_every", 50},
-            {"validation_views", 1}}}};
+            {"validation_views", 1},
+            {"optimizer", {{"type", "Adam"}, {"learning_rate", lr}, {"epsilon", 1e-15}}}}}};
 }
 
 TEST_P(MethodsTrain, TrainsToAStatedPsnrAndReloadsIdentically) {
@@ -633,8 +638,8 @@ TEST_P(MethodsTrain, TrainsToAStatedPsnrAndReloadsIdentically) {
   std::cout << method << ": training-view PSNR " << before << " -> " << after << " dB\n";
   EXPECT_EQ(s.skipped, 0u);
   EXPECT_GT(after, before + 3.0);
-  // Measured: Bi et al. 26.9, NeRV 19.5, Ours + BRDF 21.7 (spheres), Ours 20.8 dB; the bars sit 2.5-3 dB lower.
-  const std::map<std::string, double> bar{{"bi", 24.0}, {"nerv", 16.5}, {"ours_brdf", 19.0}, {"ours", 18.0}};
+  // Measured: Bi et al. 26.1, NeRV 19.5, Ours + BRDF 21.7-22.9 (spheres), Ours 20.8 dB; the bars sit 2.5-3 dB lower.
+  const std::map<std::string, double> bar{{"bi", 23.5}, {"nerv", 16.5}, {"ours_brdf", 19.0}, {"ours", 18.0}};
   EXPECT_GT(after, bar.at(method));
   const auto model = method::load_model(dev, (out.path() / "checkpoint.relit").string());
   EXPECT_EQ(model->method(), method);

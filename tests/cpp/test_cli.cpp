@@ -18,7 +18,9 @@ TEST(Cli, SlowRatesAreShownAsSecondsPerItem) {
   EXPECT_EQ(ProgressBar::rate(0.25, "views"), "4.00 s/view");
   EXPECT_EQ(ProgressBar::rate(0.02, "views"), "50.0 s/view");
   EXPECT_EQ(ProgressBar::rate(1234, "samples"), "1.2k samples/s");
-  EXPECT_EQ(ProgressBar::rate(3, "steps"), "3 steps/s");
+  EXPECT_EQ(ProgressBar::rate(3, "steps"), "3.0 steps/s");
+  EXPECT_EQ(ProgressBar::rate(1.44, "views"), "1.4 views/s");
+  EXPECT_EQ(ProgressBar::rate(42, "steps"), "42 steps/s");
   EXPECT_EQ(ProgressBar::rate(0, "steps"), "- steps/s");
 }
 

@@ -61,6 +61,9 @@ TEST(Dataset, PlanFollowsTheLightingProtocols) {
       EXPECT_EQ(f.light.intensity[1], float(inten));
       EXPECT_NEAR(norm(f.light.position), 4.0, 1e-4);
     }
+  // The sets scale with generalization_intensity: 2/3, 4/3, 2 and 8/3 of it.
+  EXPECT_EQ(generalization_intensities(600), (std::vector<int>{400, 800, 1200, 1600}));
+  EXPECT_EQ(generalization_intensities(80), (std::vector<int>{53, 107, 160, 213}));
   // Novel test cameras: none coincides with a training camera.
   for (const auto& t : d.splits.at("test"))
     for (const auto& f : d.splits.at("train")) EXPECT_NE(t.camera.transform, f.camera.transform);

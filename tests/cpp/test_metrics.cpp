@@ -15,13 +15,15 @@ double srgb(double x) {
   return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1 / 2.4) - 0.055;
 }
 
-// Wang et al. 2004 with an 11x11 Gaussian (sigma 1.5), interior pixels only, mean over channels.
-double reference_ssim(const std::vector<float>& a, const std::vector<float>& b, int w, int h, int ch) {
+// Wang et al. 2004 with an 11x11 Gaussian (sigma 1.5): the SSIM of every interior pixel (x, y), summed over the
+// channels, at (y - 5) * (w - 10) + x - 5.
+std::vector<double> reference_ssim_map(const std::vector<float>& a, const std::vector<float>& b, int w, int h, int ch) {
   double taps[11], norm = 0;
   for (int i = -5; i <= 5; ++i) norm += taps[i + 5] = std::exp(-0.5 * i * i / 2.25);
-  double total = 0;
+  std::vector<double> out;
   for (int y = 5; y < h - 5; ++y)
-    for (int x = 5; x < w - 5; ++x)
+    for (int x = 5; x < w - 5; ++x) {
+      double pixel = 0;
       for (int c = 0; c < ch; ++c) {
         double ma = 0, mb = 0, saa = 0, sbb = 0, sab = 0;
         for (int dy = -5; dy <= 5; ++dy)
@@ -36,9 +38,17 @@ double reference_ssim(const std::vector<float>& a, const std::vector<float>& b, 
             sab += wt * va * vb;
           }
         const double C1 = 1e-4, C2 = 9e-4;
-        total += ((2 * ma * mb + C1) * (2 * (sab - ma * mb) + C2)) /
+        pixel += ((2 * ma * mb + C1) * (2 * (sab - ma * mb) + C2)) /
                  ((ma * ma + mb * mb + C1) * (saa - ma * ma + sbb - mb * mb + C2));
       }
+      out.push_back(pixel);
+    }
+  return out;
+}
+
+double reference_ssim(const std::vector<float>& a, const std::vector<float>& b, int w, int h, int ch) {
+  double total = 0;
+  for (double v : reference_ssim_map(a, b, w, h, ch)) total += v;
   return total / (double(h - 10) * (w - 10) * ch);
 }
 
@@ -61,6 +71,89 @@ TEST(Metrics, MatchDoubleReferenceOnRandomImages) {
   EXPECT_NEAR(m.mse, mse, 1e-6 * mse);
   EXPECT_NEAR(m.psnr, 10 * std::log10(1 / mse), 1e-4);
   EXPECT_NEAR(m.ssim, reference_ssim(a, b, w, h, ch), 1e-5);
+}
+
+// The object metrics against the double reference: a random mask, HDR values (some clip), 4 channels.
+TEST(Metrics, ObjectMetricsMatchDoubleReferenceOnRandomImages) {
+  const Device d = test::test_device();
+  const int w = 29, h = 41, ch = 3;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0.0f, 2.5f), noise(-0.2f, 0.2f), coin(0, 1);
+  std::vector<float> a(w * h * ch), b(w * h * ch), ref_alpha(w * h), pred_alpha(w * h);
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    b[i] = u(rng);
+    a[i] = std::max(0.0f, b[i] + noise(rng));
+  }
+  for (int p = 0; p < w * h; ++p) {
+    ref_alpha[p] = coin(rng) < 0.3f ? coin(rng) : 0.0f;
+    pred_alpha[p] = coin(rng) < 0.1f ? 0.5f : 0.005f;  // 0.005: below the threshold
+  }
+  const auto mask = metrics::object_mask(ref_alpha, pred_alpha, w * h);
+  const auto m = metrics::compare(d, a, b, w, h, ch, &mask);
+  double se = 0, rel = 0, ssim = 0;
+  std::size_t pixels = 0, clipped = 0, interior = 0;
+  const auto ssim_map = reference_ssim_map(a, b, w, h, ch);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int p = y * w + x;
+      ASSERT_EQ(mask[p], ref_alpha[p] > 0.01f || pred_alpha[p] > 0.01f);
+      if (!mask[p]) continue;
+      ++pixels;
+      bool clips = false;
+      for (int c = 0; c < ch; ++c) {
+        const double pa = a[p * ch + c], pb = b[p * ch + c];
+        se += (srgb(pa) - srgb(pb)) * (srgb(pa) - srgb(pb));
+        rel += (pa - pb) * (pa - pb) / (pb * pb + 0.01);
+        clips = clips || pb > 1;
+      }
+      clipped += clips;
+      if (x >= 5 && x < w - 5 && y >= 5 && y < h - 5) {
+        ssim += ssim_map[std::size_t(y - 5) * (w - 10) + (x - 5)];
+        ++interior;
+      }
+    }
+  ASSERT_GT(pixels, 100u);
+  ASSERT_GT(clipped, 10u);
+  EXPECT_EQ(m.object.pixels, pixels);
+  EXPECT_DOUBLE_EQ(m.object.fraction, double(pixels) / (w * h));
+  const double mse = se / (pixels * ch);
+  EXPECT_NEAR(m.object.mse, mse, 1e-6 * mse);
+  EXPECT_NEAR(m.object.psnr, 10 * std::log10(1 / mse), 1e-4);
+  EXPECT_NEAR(m.object.ssim, ssim / (interior * ch), 1e-5);
+  EXPECT_NEAR(m.object.rel_mse, rel / (pixels * ch), 1e-5 * rel / (pixels * ch));
+  EXPECT_DOUBLE_EQ(m.object.clipped, double(clipped) / pixels);
+  // The whole-image numbers do not depend on the mask.
+  const auto whole = metrics::compare(d, a, b, w, h, ch);
+  EXPECT_EQ(whole.psnr, m.psnr);
+  EXPECT_EQ(whole.ssim, m.ssim);
+  EXPECT_EQ(whole.object.pixels, 0u);
+  EXPECT_TRUE(std::isnan(whole.object.psnr));
+}
+
+// An object on a matching background: the image's PSNR is mostly background, the object's is its own.
+TEST(Metrics, ObjectPsnrIsTheObjectsOwn) {
+  const Device d = test::test_device();
+  const int w = 32, h = 32;
+  std::vector<float> ref(w * h, 0.0f), pred(w * h, 0.0f), alpha(w * h, 0.0f);
+  auto linear_of = [](double s) { return float(std::pow((s + 0.055) / 1.055, 2.4)); };
+  for (int y = 12; y < 20; ++y)
+    for (int x = 12; x < 20; ++x) {  // 64 of 1024 pixels, off by 0.1 in sRGB
+      ref[y * w + x] = linear_of(0.5);
+      pred[y * w + x] = linear_of(0.6);
+      alpha[y * w + x] = 1.0f;
+    }
+  const auto mask = metrics::object_mask(alpha, {}, w * h);
+  const auto m = metrics::compare(d, pred, ref, w, h, 1, &mask);
+  EXPECT_NEAR(m.object.psnr, 20.0, 1e-3);
+  EXPECT_NEAR(m.psnr, 20.0 + 10 * std::log10(1024.0 / 64.0), 1e-3);  // 32.04 dB: the background is exact
+  EXPECT_EQ(m.object.pixels, 64u);
+  EXPECT_DOUBLE_EQ(m.object.clipped, 0.0);
+  // An empty mask: no object metrics; a mask of the wrong size or alphas of the wrong size: errors.
+  const std::vector<std::uint8_t> none(w * h, 0), short_mask(10, 1);
+  EXPECT_TRUE(std::isnan(metrics::compare(d, pred, ref, w, h, 1, &none).object.rel_mse));
+  EXPECT_THROW(metrics::compare(d, pred, ref, w, h, 1, &short_mask), InvalidArgument);
+  EXPECT_THROW(metrics::object_mask(alpha, std::vector<float>(5), w * h), InvalidArgument);
+  EXPECT_EQ(metrics::object_mask({}, {}, 4), std::vector<std::uint8_t>(4, 0));
 }
 
 TEST(Metrics, KnownAnswers) {

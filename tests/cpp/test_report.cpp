@@ -150,7 +150,9 @@ TEST(Report, ContactSheetPanelsInOrderWithGutters) {
   // Row 0: prediction 0.2, reference 0.6 (distinct, to see the order); row 1: identical images.
   std::vector<ViewResult> views = {view("test", "a", 10, 0.5, 0.2f, 0.6f), view("test", "b", 99, 1, 0.3f, 0.3f)};
   const int w = 4, h = 3, g = 4;
-  const Image sheet = report::contact_sheet(pointers(views));
+  report::ContactSheetOptions o;
+  o.labels = false;  // the panels alone (ContactSheetLabels: the titles, captions and bar)
+  const Image sheet = report::contact_sheet(pointers(views), o);
   ASSERT_EQ(sheet.channels, 3);
   EXPECT_EQ(sheet.width, 3 * w + 4 * g);
   EXPECT_EQ(sheet.height, 2 * (h + g) + g);
@@ -182,6 +184,7 @@ TEST(Report, ContactSheetErrorScaleClampingAndMixedSizes) {
   const std::vector<const ViewResult*> both = {&v, &small};
   report::ContactSheetOptions o;
   o.gutter = 1;
+  o.labels = false;
   const Image a = report::contact_sheet(both, o);
   EXPECT_EQ(a.width, 3 * 4 + 4);
   EXPECT_EQ(a.height, 2 * (3 + 1) + 1);
@@ -205,13 +208,50 @@ TEST(Report, ContactSheetCapsTheRows) {
   for (int i = 0; i < 10; ++i) views.push_back(view("test", "v" + std::to_string(i), 20, 0.5, 0.1f * i, 0.5f));
   report::ContactSheetOptions o;
   o.max_rows = 4;
+  o.labels = false;
   const Image sheet = report::contact_sheet(pointers(views), o);
   const int h = 3, g = 4;
   ASSERT_EQ(sheet.height, 4 * (h + g) + g);
   const int shown[] = {0, 3, 6, 9};
   for (int r = 0; r < 4; ++r) EXPECT_FLOAT_EQ(sheet.at(g, g + r * (h + g), 0), 0.1f * shown[r]) << "row " << r;
   // The default cap is 8.
-  EXPECT_EQ(report::contact_sheet(pointers(views)).height, 8 * (h + g) + g);
+  o.max_rows = report::ContactSheetOptions().max_rows;
+  EXPECT_EQ(report::contact_sheet(pointers(views), o).height, 8 * (h + g) + g);
+}
+
+// Labels: a title band, a caption under each row, and the error map's colour bar under the error column.
+TEST(Report, ContactSheetLabels) {
+  std::vector<ViewResult> views = {view("test", "a", 10, 0.5, 0.2f, 0.6f), view("test", "b", 20, 1, 0.3f, 0.3f)};
+  const int h = 3, g = 4, band = 15, cell = 72, bar = 8;  // 4-pixel views in 72-pixel cells: captions fit
+  const Image sheet = report::contact_sheet(pointers(views));
+  ASSERT_EQ(sheet.width, 3 * cell + 4 * g);
+  ASSERT_EQ(sheet.height, g + band + 2 * (h + band + g) + bar + band + g);
+  // The panels sit below the title band, rows a caption band apart.
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_FLOAT_EQ(sheet.at(g, g + band, c), 0.2f);
+    EXPECT_FLOAT_EQ(sheet.at(2 * g + cell, g + band, c), 0.6f);
+    EXPECT_FLOAT_EQ(sheet.at(g, g + band + (h + band + g), c), 0.3f);
+  }
+  // Text is drawn (light pixels) in the title band over each column and in each caption band, nowhere else
+  // near it is anything but gutter.
+  const auto has_text = [&](int x0, int x1, int y0, int y1) {
+    for (int y = y0; y < y1; ++y)
+      for (int x = x0; x < x1; ++x)
+        if (sheet.at(x, y, 0) > 0.2f) return true;
+    return false;
+  };
+  for (int col = 0; col < 3; ++col) EXPECT_TRUE(has_text(g + col * (cell + g), (col + 1) * (cell + g), g, g + band));
+  for (int r = 0; r < 2; ++r) {
+    const int y = g + band + r * (h + band + g) + h;
+    EXPECT_TRUE(has_text(g, sheet.width, y, y + band)) << "caption " << r;
+  }
+  // The bar: the colour map from 0 at the left to the top at the right of the error column.
+  const int x_err = 3 * g + 2 * cell, y_bar = g + band + 2 * (h + band + g);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(sheet.at(x_err, y_bar, c), srgb_to_linear(report::error_colour(0)[c]), 1e-6);
+    EXPECT_NEAR(sheet.at(x_err + cell - 1, y_bar + bar - 1, c), srgb_to_linear(report::error_colour(1)[c]), 1e-6);
+  }
+  EXPECT_TRUE(has_text(x_err, x_err + cell, y_bar + bar, y_bar + bar + band));  // "0" and "≥ 0.25"
 }
 
 TEST(Report, ContactSheetRejectsBadInput) {
@@ -290,6 +330,15 @@ TEST(Report, MetricsJsonAndMarkdownParseBack) {
   test::TempDir dir("report");
   std::vector<ViewResult> views = {view("test", "a", 30, 0.9), view("test", "b", 20, 0.7),
                                    view("test_light", "c|d", 25, 0.81234)};
+  // View a has object metrics, b has none (an empty mask): the object means are a's.
+  auto& obj = views[0].metrics.object;
+  obj.pixels = 6;
+  obj.fraction = 0.5;
+  obj.psnr = 22;
+  obj.ssim = 0.6;
+  obj.mse = std::pow(10.0, -2.2);
+  obj.rel_mse = 0.125;
+  obj.clipped = 0.25;
   report::ReportOptions o;
   o.meta = {{"method", "ours"}, {"steps", 3000}, {"config", {{"lr", 0.01}}}};
   o.sheet.max_rows = 1;
@@ -318,16 +367,27 @@ TEST(Report, MetricsJsonAndMarkdownParseBack) {
   EXPECT_EQ(j["views"][2]["height"], 3);
   EXPECT_DOUBLE_EQ(j["views"][1]["psnr"].get<double>(), 20.0);
   EXPECT_DOUBLE_EQ(j["views"][1]["mse"].get<double>(), 0.01);
+  EXPECT_DOUBLE_EQ(j["splits"]["test"]["object"]["psnr"].get<double>(), 22.0);
+  EXPECT_DOUBLE_EQ(j["mean"]["object"]["rel_mse"].get<double>(), 0.125);
+  EXPECT_DOUBLE_EQ(j["mean"]["object"]["clipped"].get<double>(), 0.25);
+  EXPECT_TRUE(j["splits"]["test_light"]["object"]["psnr"].is_null());
+  EXPECT_EQ(j["views"][0]["object"]["pixels"], 6);
+  EXPECT_DOUBLE_EQ(j["views"][0]["object"]["ssim"].get<double>(), 0.6);
+  EXPECT_TRUE(j["views"][1]["object"]["psnr"].is_null());
 
   const std::string md = io::read_file((out / "metrics.md").string());
   EXPECT_TRUE(contains(md, "- method: ours\n- steps: 3000\n")) << md;
-  EXPECT_TRUE(contains(md, "| split | views | PSNR [dB] | SSIM | MSE |")) << md;
-  EXPECT_TRUE(contains(md, "| test | 2 | 25.00 | 0.8000 | 5.500e-03 |")) << md;
+  EXPECT_TRUE(contains(md, "| split | views | PSNR [dB] | SSIM | MSE | object PSNR [dB] | object SSIM |")) << md;
+  EXPECT_TRUE(contains(md, "| test | 2 | 25.00 | 0.8000 | 5.500e-03 | 22.00 | 0.6000 | 1.250e-01 | 25.0 % | 50.0 % |"))
+      << md;
   EXPECT_TRUE(contains(md, "| test_light | 1 | 25.00 | 0.8123 | 3.162e-03 |")) << md;
   EXPECT_TRUE(contains(md, "| **mean** | 3 | 25.00 | 0.8041 |")) << md;
   EXPECT_TRUE(contains(md, "## test\n\n![test contact sheet](contact_sheet_test.png)")) << md;
   EXPECT_TRUE(contains(md, "Shown: a (1 of 2 views)")) << md;
-  EXPECT_TRUE(contains(md, "| a | 30.00 | 0.9000 | 1.000e-03 |\n| b | 20.00 | 0.7000 | 1.000e-02 |")) << md;
+  EXPECT_TRUE(contains(md,
+                       "| a | 30.00 | 0.9000 | 1.000e-03 | 22.00 | 0.6000 | 1.250e-01 | 25.0 % |\n"
+                       "| b | 20.00 | 0.7000 | 1.000e-02 | – | – | – | – |"))
+      << md;
   EXPECT_TRUE(contains(md, "| c\\|d | 25.00 | 0.8123 |")) << md;  // '|' escaped in a table cell
   EXPECT_LT(md.find("## test\n"), md.find("## test_light\n"));
 
@@ -349,10 +409,11 @@ TEST(Report, WrittenContactSheetAndPredictions) {
   views[1].prediction[0] = 0.75f;
   report::ReportOptions o;
   o.write_predictions = o.write_exr = true;
+  o.sheet.labels = false;
   report::write_report(dir.path().string(), views, o);
 
   const Image sheet = read_image((dir.path() / "contact_sheet_test.png").string());
-  const Image expected = report::contact_sheet(pointers(views));
+  const Image expected = report::contact_sheet(pointers(views), o.sheet);
   ASSERT_EQ(sheet.width, expected.width);
   ASSERT_EQ(sheet.height, expected.height);
   // The PNG holds the sRGB values to 8 bits: the error panels show the map's ends.

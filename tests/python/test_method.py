@@ -111,6 +111,10 @@ def test_cli_train_resume_and_render(dataset, tmp_path):
     assert metrics["splits"]["test"]["n_views"] == 1 and metrics["meta"]["step"] == 6
     assert metrics["meta"]["spp"] == 4
     assert abs(metrics["mean"]["psnr"] - psnr[0]) < 1e-3
+    # The object's metrics: the mask is the reference's alpha or the model's (its rendered 1 - transmittance).
+    view = metrics["views"][0]
+    assert 0 < view["object"]["pixels"] <= 12 * 12 and math.isfinite(view["object"]["psnr"])
+    assert view["object"]["rel_mse"] > 0 and 0 <= view["object"]["clipped"] <= 1
     assert os.path.exists(os.path.join(report, "contact_sheet_test.png"))
     assert os.path.exists(os.path.join(report, "metrics.md"))
     r = run_python(["-m", "relit", "render", run, "--eye", "0", "-4", "1", "--resolution", "16", "--light", "1", "-3",

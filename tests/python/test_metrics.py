@@ -27,3 +27,27 @@ def test_psnr_and_ssim_match_scikit_image(device, shape):
 def test_shape_mismatch_is_a_value_error(device):
     with pytest.raises(ValueError, match="same shape"):
         relit.metrics.psnr(np.zeros((16, 16, 3), np.float32), np.zeros((16, 17, 3), np.float32), device=device)
+
+
+def test_object_metrics_match_numpy(device):
+    """Over a mask: PSNR of the sRGB images, the linear relative MSE, the clipped share (numpy in double)."""
+    rng = np.random.default_rng(3)
+    ref = rng.uniform(0, 2.0, size=(40, 36, 3)).astype(np.float32)
+    pred = np.maximum(ref + rng.normal(0, 0.1, size=ref.shape), 0).astype(np.float32)
+    ref_alpha = np.where(rng.uniform(size=(40, 36)) < 0.4, 0.8, 0.0).astype(np.float32)
+    pred_alpha = np.zeros((40, 36), np.float32)
+    pred_alpha[:4] = 0.02  # above the 0.01 threshold: object pixels too
+    mask = relit.metrics.object_mask(ref_alpha, pred_alpha)
+    np.testing.assert_array_equal(mask, (ref_alpha > 0.01) | (pred_alpha > 0.01))
+    m = relit.metrics.compare(pred, ref, device=device, mask=mask)
+    a, b = srgb(pred)[mask], srgb(ref)[mask]
+    assert m["object"]["pixels"] == mask.sum()
+    assert m["object"]["psnr"] == pytest.approx(10 * np.log10(1 / np.mean((a - b) ** 2)), abs=1e-4)
+    p64, r64 = pred[mask].astype(np.float64), ref[mask].astype(np.float64)
+    assert m["object"]["rel_mse"] == pytest.approx(np.mean((p64 - r64) ** 2 / (r64 ** 2 + 0.01)), rel=1e-5)
+    assert m["object"]["clipped"] == pytest.approx(np.mean((ref[mask] > 1).any(axis=1)))
+    # The whole image is unchanged by the mask; without one there are no object metrics.
+    plain = relit.metrics.compare(pred, ref, device=device)
+    assert plain["psnr"] == m["psnr"] and np.isnan(plain["object"]["psnr"])
+    with pytest.raises(ValueError, match="mask"):
+        relit.metrics.compare(pred, ref, device=device, mask=mask[:10])

@@ -76,7 +76,7 @@ def test_contact_sheet_panels():
     pred[0, 0] = [2.0, -1.0, 0.5]  # out of range: shown clamped
     same = {"name": "same", "prediction": ref, "reference": ref}
     off = {"name": "off", "prediction": np.ones_like(ref), "reference": np.zeros_like(ref)}
-    sheet = relit.contact_sheet([{"name": "x", "prediction": pred, "reference": ref}, same, off])
+    sheet = relit.contact_sheet([{"name": "x", "prediction": pred, "reference": ref}, same, off], labels=False)
     g, h, w = 4, 6, 5
     assert sheet.dtype == np.float32 and sheet.shape == (3 * (h + g) + g, 3 * w + 4 * g, 3)
     np.testing.assert_allclose(sheet[g:g + h, g:g + w], np.clip(pred, 0, 1))           # prediction
@@ -96,7 +96,12 @@ def test_contact_sheet_panels():
                                atol=1e-5)
     # srgb=True: the display values; max_rows caps the rows.
     np.testing.assert_allclose(relit.contact_sheet([same], srgb=True), srgb(relit.contact_sheet([same])), atol=1e-5)
-    assert relit.contact_sheet([same, off, same], max_rows=2).shape[0] == 2 * (h + g) + g
+    assert relit.contact_sheet([same, off, same], max_rows=2, labels=False).shape[0] == 2 * (h + g) + g
+    # Labels: a title band and a caption band per row, the colour bar; cells at least 72 pixels wide.
+    band, bar = 15, 8
+    labelled = relit.contact_sheet([same, off])
+    assert labelled.shape == (g + band + 2 * (h + band + g) + bar + band + g, 3 * 72 + 4 * g, 3)
+    assert labelled[g:g + band].max() > 0.5  # the titles
 
 
 def test_bad_views_are_value_errors_naming_the_view(tmp_path):
@@ -129,3 +134,39 @@ def test_perfect_view_has_null_psnr(device, tmp_path):
     report = json.loads((tmp_path / "metrics.json").read_text())
     assert report["views"][0]["psnr"] is None and report["mean"]["psnr"] is None
     assert math.isinf(float(lines.splitlines()[-2].split()[1]))
+
+
+def test_cli_eval_compares_two_folders_of_images(tmp_path):
+    """relit eval --predictions DIR --references DIR: another renderer's images (here a noisier rendering of the
+    same views) against a dataset, the same report; identical folders score +inf (null); a missing prediction is
+    an error naming it."""
+    from conftest import run_python
+
+    def generate(out, spp):
+        r = run_python(["-m", "relit", "generate", "--scene", "cloud", "--scene-resolution", "16", "--resolution", "16",
+                        "--train", "1", "--val", "0", "--test", "2", "--spp", str(spp), "--out", str(out)])
+        assert r.returncode == 0, r.stderr
+
+    generate(tmp_path / "ref", 16)
+    generate(tmp_path / "pred", 1)
+    r = run_python(["-m", "relit", "eval", "--predictions", str(tmp_path / "pred"), "--references", str(tmp_path / "ref"),
+                    "--out", str(tmp_path / "report")])
+    assert r.returncode == 0, r.stderr
+    report = json.loads((tmp_path / "report" / "metrics.json").read_text())
+    assert [(v["split"], v["name"]) for v in report["views"]] == [("test", "r_000"), ("test", "r_001"), ("train", "r_000")]
+    for v in report["views"]:
+        assert 10 < v["psnr"] < 80 and v["object"]["pixels"] > 0  # the EXRs' alpha gives the object
+        assert 0 <= v["object"]["clipped"] <= 1 and v["object"]["rel_mse"] > 0
+    assert "object: PSNR" in r.stdout and (tmp_path / "report" / "contact_sheet_test.png").exists()
+
+    same = run_python(["-m", "relit", "eval", "--predictions", str(tmp_path / "ref"), "--references", str(tmp_path / "ref"),
+                       "--out", str(tmp_path / "same")])
+    assert same.returncode == 0, same.stderr
+    assert json.loads((tmp_path / "same" / "metrics.json").read_text())["mean"]["psnr"] is None  # +inf
+
+    os.remove(tmp_path / "pred" / "test" / "r_001.exr")
+    os.remove(tmp_path / "pred" / "test" / "r_001.png")
+    bad = run_python(["-m", "relit", "eval", "--predictions", str(tmp_path / "pred"), "--references", str(tmp_path / "ref"),
+                      "--out", str(tmp_path / "bad")])
+    assert bad.returncode != 0 and "test/r_001" in bad.stderr and "no prediction" in bad.stderr
+    assert not (tmp_path / "bad").exists()

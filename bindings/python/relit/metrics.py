@@ -1,11 +1,15 @@
-"""relit.metrics: PSNR and SSIM of linear images, measured on their clamped sRGB encodings (in OpenCL).
+"""relit.metrics: image metrics of linear images, computed in OpenCL (docs/evaluation.md).
 
-    relit.metrics.compare(prediction, reference)   # {'mse': ..., 'psnr': ..., 'ssim': ...}
+    relit.metrics.compare(prediction, reference)   # {'mse', 'psnr', 'ssim', ...}: the paper's protocol
+    mask = relit.metrics.object_mask(reference[..., 3], prediction[..., 3])
+    m = relit.metrics.compare(prediction[..., :3], reference[..., :3], mask=mask)
+    m["object"]["psnr"], m["object"]["rel_mse"], m["object"]["clipped"]
 """
 from ._core import metrics as _metrics
 
 compare = _metrics.compare
+object_mask = _metrics.object_mask
 psnr = _metrics.psnr
 ssim = _metrics.ssim
 
-__all__ = ["compare", "psnr", "ssim"]
+__all__ = ["compare", "object_mask", "psnr", "ssim"]

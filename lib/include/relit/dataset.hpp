@@ -46,6 +46,8 @@ struct DatasetSettings {
   float intensity_min = 600.0f, intensity_max = 600.0f;  ///< W/sr (white); equal = fixed
   bool generalization = false;  ///< also write the light-distance and light-intensity test sets
   std::uint32_t generalization_views = 20;
+  /// W/sr of the light-distance sets, and 3/2 of the first light-intensity set (generalization_intensities())
+  float generalization_intensity = 600.0f;
   float env_scale = 1.0f;    ///< 'env+point' without an environment in the scene: procedural sky scale
   bool env_visible = false;  ///< whether camera rays that miss see the environment
   bool previews = true;      ///< write PNG previews
@@ -53,6 +55,10 @@ struct DatasetSettings {
 
   void validate() const;
 };
+
+/// The light intensities of the generalisation test sets (test_intensity_<value>) for a base intensity: 2/3,
+/// 4/3, 2 and 8/3 of it, rounded to whole W/sr (400, 800, 1200, 1600 for 600).
+std::vector<int> generalization_intensities(float base_intensity);
 
 /// One view of a dataset split.
 struct DatasetFrame {
@@ -89,12 +95,16 @@ struct DatasetSplit {
   std::vector<Camera> cameras;
   std::vector<PointLight> lights;
   std::vector<float> images;
+  /// The images' alpha (n x h x w, the object's coverage) when every image of the split has one; else empty.
+  std::vector<float> alphas;
   int width = 0, height = 0;
   /// The environment light of an 'env+point' dataset (every view is lit by it as well), or null.
   std::shared_ptr<const EnvironmentLight> environment;
   std::size_t size() const { return cameras.size(); }
   /// View i's image (h x w x 3).
   std::vector<float> image(std::size_t i) const;
+  /// View i's alpha (h x w), or empty when the split's images have none.
+  std::vector<float> alpha(std::size_t i) const;
 };
 
 /// Reads a split of a dataset folder (docs/dataset-format.md). `max_views` > 0 keeps that many views,

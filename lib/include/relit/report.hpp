@@ -21,6 +21,7 @@
 #include <relit/config.hpp>
 #include <relit/io/image.hpp>
 #include <relit/metrics.hpp>
+#include <relit/progress.hpp>
 
 #include <array>
 #include <cstddef>
@@ -44,12 +45,16 @@ struct SplitSummary {
   std::string split;
   std::size_t n_views = 0;
   double psnr = 0, ssim = 0, mse = 0;  ///< PSNR: the mean of the per-view PSNRs in dB
+  /// The object metrics' means over the views that have them (an object mask with pixels), NaN when none has:
+  /// ObjectComparison's psnr, ssim, rel_mse, clipped and fraction.
+  double object_psnr = 0, object_ssim = 0, object_rel_mse = 0, object_clipped = 0, object_fraction = 0;
 };
 
 /// Checks what the report relies on and throws InvalidArgument naming the view (split/name, index) and the
 /// problem: no views; an empty split or name, or one that is not a plain file name ('/', "..", control
 /// characters); the same name twice in a split; a zero size; images whose length is not width x height x 3;
-/// a NaN or infinite pixel (with its position); NaN metrics (or infinite mse/ssim).
+/// a NaN or infinite pixel (with its position); NaN metrics (or infinite mse/ssim) of the whole image (the object
+/// metrics may be NaN: no object pixels).
 void validate(const std::vector<ViewResult>& views);
 
 /// The means of every split, in the order the splits first appear in `views`.
@@ -70,10 +75,15 @@ struct ContactSheetOptions {
   std::size_t max_rows = 8;   ///< more views than this: select_rows() picks which
   float error_scale = 0.25f;  ///< the mean absolute sRGB difference shown as the top of the colour map
   int gutter = 4;             ///< pixels of dark grey around and between the panels
+  /// Column titles, a caption under each row (the view's name, PSNR and object PSNR) and a colour bar of the
+  /// error map at the bottom. Off: the panels and gutters alone.
+  bool labels = true;
 };
 
 /// A contact sheet of `views`: one row per selected view, three panels per row, prediction | reference |
-/// error. Panels are views' own size, top-left aligned in cells as large as the largest view. The image is
+/// error. Panels are views' own size, top-left aligned in cells as large as the largest view (with labels at
+/// least 72 pixels wide, a 15-pixel text band above the panels and under each row, and an 8-pixel colour bar
+/// under the error column). The image is
 /// linear (write_image() encodes a .png as sRGB): prediction and reference are clamped to [0, 1]; the
 /// error panel shows, per pixel, the mean over R, G, B of |sRGB(prediction) - sRGB(reference)| (both
 /// clamped) divided by error_scale, through error_colour(), so that the PNG shows the colour map's sRGB
@@ -104,6 +114,22 @@ std::string metrics_markdown(const std::vector<ViewResult>& views, const ReportO
 /// Throws InvalidArgument for bad input (validate(), a `meta` that is not an object) and IOError naming
 /// the file or folder that could not be written.
 void write_report(const std::string& dir, const std::vector<ViewResult>& views, const ReportOptions& options = {});
+
+/// The views of compare_folders(), and the predictions that no reference matched (contact sheets, other files).
+struct FolderComparison {
+  std::vector<ViewResult> views;
+  std::vector<std::string> unmatched_predictions;
+};
+
+/// Compares the images of any renderer with references (relit eval --predictions DIR --references DIR). The
+/// references are a relit dataset folder (its transforms_<split>.json name the images) or any folder of images;
+/// a reference's key is its split and file stem: test/r_000 for DIR/test/r_000.exr (the split is the folder
+/// relative to DIR with '/' as '_', "images" at the top). The prediction of a key is found under `predictions`
+/// the same way, with any image extension (.exr, .pfm, .hdr before .png, .jpg). Alpha channels, where either
+/// image has one, give the object mask (metrics::object_mask). Throws IOError naming the references without a
+/// prediction, a size mismatch, an unreadable image or non-finite pixels.
+FolderComparison compare_folders(const Device& device, const std::string& predictions, const std::string& references,
+                                 const ProgressCallback& progress = {});
 
 /// What a program prints: one line per split, "<split>: PSNR 31.23 dB  SSIM 0.9512 (50 views)", then
 /// exactly "PSNR <mean>" and "SSIM <mean>" over all views, 4 decimals each (scripts parse these two).

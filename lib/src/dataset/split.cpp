@@ -15,6 +15,12 @@ std::vector<float> DatasetSplit::image(std::size_t i) const {
   return std::vector<float>(images.begin() + i * n, images.begin() + (i + 1) * n);
 }
 
+std::vector<float> DatasetSplit::alpha(std::size_t i) const {
+  if (alphas.empty()) return {};
+  const std::size_t n = std::size_t(width) * height;
+  return std::vector<float>(alphas.begin() + i * n, alphas.begin() + (i + 1) * n);
+}
+
 namespace {
 // The "environment" entry of a transforms file: null, or {file, scale, visible} (docs/dataset-format.md).
 std::shared_ptr<const EnvironmentLight> load_environment(const std::string& dataset_dir, const std::string& file,
@@ -74,6 +80,12 @@ DatasetSplit load_split(const std::string& dataset_dir, const std::string& split
                         "; radiance must be finite and >= 0");
         out.images.push_back(v);
       }
+    // The alpha of RGBA images (1 - transmittance: the object's coverage); an RGB image makes the split's unknown.
+    if (img.channels >= 4 && (out.cameras.empty() || !out.alphas.empty()))
+      for (std::size_t p = 0; p < std::size_t(img.width) * img.height; ++p)
+        out.alphas.push_back(img.pixels[p * img.channels + 3]);
+    else
+      out.alphas.clear();
     out.names.push_back(fs::path(f.file_path).stem().string());
     out.cameras.push_back(f.camera);
     out.lights.push_back(f.light);

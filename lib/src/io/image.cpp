@@ -3,6 +3,8 @@
 #include <relit/io/file.hpp>
 #include <relit/io/image.hpp>
 
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -267,6 +269,19 @@ void write_image(const std::string& path, const Image& image) {
     throw IOError("cannot write '" + path + "': " + out->geterror());
   }
   io::replace_file(tmp.string(), target.string());
+}
+
+bool draw_text(Image& image, int x, int y, const std::string& text, int size, float value, TextAlign align) {
+  if (image.empty() || text.empty() || size <= 0) return true;
+  OIIO::ImageBuf buf(OIIO::ImageSpec(image.width, image.height, image.channels, OIIO::TypeDesc::FLOAT),
+                     image.pixels.data());
+  const std::vector<float> colour(std::size_t(image.channels), value);
+  const auto alignx = align == TextAlign::Left     ? OIIO::ImageBufAlgo::TextAlignX::Left
+                      : align == TextAlign::Center ? OIIO::ImageBufAlgo::TextAlignX::Center
+                                                   : OIIO::ImageBufAlgo::TextAlignX::Right;
+  // One thread: the glyphs are few, and the result must not depend on the machine.
+  return OIIO::ImageBufAlgo::render_text(buf, x, y, text, size, "DejaVuSans", colour, alignx,
+                                         OIIO::ImageBufAlgo::TextAlignY::Top, 0, {}, 1);
 }
 
 }  // namespace relit

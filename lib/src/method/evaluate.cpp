@@ -30,14 +30,21 @@ std::vector<report::ViewResult> evaluate(const Model& model, const std::string& 
   ImageRenderSettings rs;
   rs.visibility = options.visibility;
   rs.spp = options.spp;
+  rs.alpha = true;  // the object mask of the metrics (the prediction's alpha or the reference's)
   const auto render = [&](std::size_t k) {
     const auto& [split, i] = order[k];
     rs.seed = static_cast<std::uint32_t>(i);
     rs.environment = split->environment.get();
     return render_image(model, split->cameras[i], split->lights[i], rs).pixels;
   };
-  const auto compare = [&](std::size_t k, std::vector<float>&& prediction) {
+  const auto compare = [&](std::size_t k, std::vector<float>&& rgba) {
     const auto& [split, i] = order[k];
+    const std::size_t pixels = std::size_t(split->width) * split->height;
+    std::vector<float> prediction(pixels * 3), alpha(pixels);
+    for (std::size_t p = 0; p < pixels; ++p) {
+      for (int c = 0; c < 3; ++c) prediction[p * 3 + c] = rgba[p * 4 + c];
+      alpha[p] = rgba[p * 4 + 3];
+    }
     report::ViewResult v;
     v.split = split->split;
     v.name = split->names[i];
@@ -45,11 +52,12 @@ std::vector<report::ViewResult> evaluate(const Model& model, const std::string& 
     v.height = static_cast<std::uint32_t>(split->height);
     v.prediction = std::move(prediction);
     v.reference = split->image(i);
-    v.metrics = metrics::compare(model.device(), v.prediction, v.reference, v.width, v.height, 3);
+    const auto mask = metrics::object_mask(split->alpha(i), alpha, pixels);
+    v.metrics = metrics::compare(model.device(), v.prediction, v.reference, v.width, v.height, 3, &mask);
     views.push_back(std::move(v));
     tracker.update(views.size(), split->split + "/" + split->names[i]);
   };
-  const auto view_size = [&](std::size_t k) { return std::size_t(order[k].first->width) * order[k].first->height * 3; };
+  const auto view_size = [&](std::size_t k) { return std::size_t(order[k].first->width) * order[k].first->height * 4; };
   parallel::share_out(order.size(), view_size, render, compare);
   if (!writer) return views;  // rank 0 holds the results and writes the report
   report::ReportOptions ro;

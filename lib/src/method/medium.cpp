@@ -436,6 +436,9 @@ const Buffer<float>& MediumModel::color(const ModelPass& pass, std::uint32_t i) 
   return medium_pass(pass).color;
 }
 
+// Bi et al.'s fine branch and NeRV's camera rays are the MediumPass itself: its transmittance is the image's.
+const Buffer<float>& MediumModel::transmittance(const ModelPass& pass) const { return medium_pass(pass).transmittance; }
+
 void MediumModel::backward(ModelPass& base, const Buffer<float>& rays,
                            const std::vector<const Buffer<float>*>& d_colors, const PassOptions& o) {
   MediumPass& pass = medium_pass(base);

@@ -36,13 +36,14 @@ Image render_image(const Model& model, const Camera& camera, const PointLight& l
   tile = std::min(tile, std::max<std::uint32_t>(16, (1u << 19) / model.queries_per_ray()));
   const auto pass = model.make_pass();
   Buffer<float> rays(device, std::size_t(tile) * render::kRayFloats);
-  Image out(camera.width, camera.height, 3);
-  std::vector<float> sample(std::size_t(tile) * 3);
+  const int channels = settings.alpha ? 4 : 3;
+  Image out(camera.width, camera.height, channels);
+  std::vector<float> sample(std::size_t(tile) * 3), transmittance(settings.alpha ? tile : 0);
   const render::ImageRays image_rays(device, camera, light);
   ProgressTracker tracker(progress, std::uint64_t(total) * spp, "rays");
   for (std::uint32_t first = 0, k = 0; first < total; first += tile, ++k) {
     const std::uint32_t n = std::min(tile, total - first);
-    float* dst = out.pixels.data() + std::size_t(first) * 3;
+    float* dst = out.pixels.data() + std::size_t(first) * channels;
     for (std::uint32_t s = 0; s < spp; ++s) {
       const std::uint32_t iteration = k * spp + s;  // spp 1: the tile's index
       image_rays(first, n, rays, offsets[s]);
@@ -58,10 +59,14 @@ Image render_image(const Model& model, const Camera& camera, const PointLight& l
       o.env = env.get();
       model.render(*pass, rays, n, o);
       model.color(*pass, model.n_colors() - 1).read(sample.data(), 3 * std::size_t(n));
-      for (std::size_t i = 0; i < 3 * std::size_t(n); ++i) dst[i] += sample[i];  // out starts at 0
+      if (settings.alpha) model.transmittance(*pass).read(transmittance.data(), n);
+      for (std::size_t p = 0; p < n; ++p) {  // out starts at 0
+        for (int c = 0; c < 3; ++c) dst[p * channels + c] += sample[p * 3 + c];
+        if (settings.alpha) dst[p * 4 + 3] += 1.0f - transmittance[p];
+      }
       tracker.update(std::uint64_t(first) * spp + std::uint64_t(n) * (s + 1));
     }
-    for (std::size_t i = 0; i < 3 * std::size_t(n); ++i) dst[i] /= static_cast<float>(spp);
+    for (std::size_t i = 0; i < std::size_t(channels) * n; ++i) dst[i] /= static_cast<float>(spp);
   }
   return out;
 }

@@ -1,10 +1,10 @@
-// PSNR and SSIM: launches of kernels/metrics.cl, partial sums added on the host in double.
+// PSNR, SSIM and the object metrics: launches of kernels/metrics.cl, per-row partial sums added on the host in
+// double, in row order.
 #include <relit/cl/program.hpp>
 #include <relit/metrics.hpp>
 
 #include <cmath>
 #include <limits>
-#include <numeric>
 
 namespace relit::metrics {
 
@@ -21,15 +21,32 @@ std::vector<float> gaussian_taps() {
   return w;
 }
 
-double sum_rows(const Buffer<float>& rows) {
+// Row sums of `k` interleaved quantities, each added over the rows in double, in order.
+std::vector<double> column_sums(const Buffer<float>& rows, std::size_t k) {
   const auto v = rows.read();
-  return std::accumulate(v.begin(), v.end(), 0.0);
+  std::vector<double> out(k, 0.0);
+  for (std::size_t i = 0; i < v.size(); ++i) out[i % k] += v[i];
+  return out;
 }
 }  // namespace
 
+std::vector<std::uint8_t> object_mask(const std::vector<float>& reference_alpha,
+                                      const std::vector<float>& prediction_alpha, std::size_t pixels) {
+  for (const auto* alpha : {&reference_alpha, &prediction_alpha})
+    if (!alpha->empty() && alpha->size() != pixels)
+      throw InvalidArgument("metrics::object_mask: an alpha of " + std::to_string(alpha->size()) +
+                            " values for an image of " + std::to_string(pixels) + " pixels");
+  std::vector<std::uint8_t> mask(pixels, 0);
+  for (const auto* alpha : {&reference_alpha, &prediction_alpha})
+    for (std::size_t i = 0; i < alpha->size(); ++i)
+      if ((*alpha)[i] > kObjectAlpha) mask[i] = 1;
+  return mask;
+}
+
 ImageComparison compare(const Device& device, const std::vector<float>& prediction, const std::vector<float>& reference,
-                        std::uint32_t width, std::uint32_t height, std::uint32_t channels) {
-  const std::size_t n = std::size_t(width) * height * channels;
+                        std::uint32_t width, std::uint32_t height, std::uint32_t channels,
+                        const std::vector<std::uint8_t>* mask) {
+  const std::size_t pixels = std::size_t(width) * height, n = pixels * channels;
   if (channels == 0 || prediction.size() != n || reference.size() != n)
     throw InvalidArgument("metrics::compare: expected two " + std::to_string(height) + "x" + std::to_string(width) +
                           "x" + std::to_string(channels) + " images (" + std::to_string(n) + " values), got " +
@@ -37,26 +54,47 @@ ImageComparison compare(const Device& device, const std::vector<float>& predicti
   if (width < 2 * kRadius + 1 || height < 2 * kRadius + 1)
     throw InvalidArgument("metrics::compare: SSIM needs images of at least 11x11 pixels, got " + std::to_string(width) +
                           "x" + std::to_string(height));
+  if (mask && mask->size() != pixels)
+    throw InvalidArgument("metrics::compare: the mask has " + std::to_string(mask->size()) +
+                          " values for an image of " + std::to_string(pixels) + " pixels");
   for (const auto* img : {&prediction, &reference})
     for (float v : *img)
       if (std::isnan(v))
         throw InvalidArgument(std::string("metrics::compare: the ") +
                               (img == &prediction ? "prediction" : "reference") + " contains NaN");
   Buffer<float> a(device, prediction), b(device, reference);
+  Buffer<std::uint8_t> m(device, mask ? *mask : std::vector<std::uint8_t>(pixels, 0));
   const auto count = static_cast<std::uint32_t>(n);
+  // The linear images first: the object's relative MSE and clipped pixels.
+  Buffer<float> object_sums(device, 3 * std::size_t(height));
+  device.kernel("metrics.cl", "object_rows").args(width, height, channels, a, b, m, object_sums).launch(height, 1);
   device.kernel("metrics.cl", "to_srgb").args(count, a).launch(count, 64);
   device.kernel("metrics.cl", "to_srgb").args(count, b).launch(count, 64);
 
-  Buffer<float> se_rows(device, height);
-  device.kernel("metrics.cl", "squared_error_rows").args(width, height, channels, a, b, se_rows).launch(height, 1);
+  Buffer<float> se_rows(device, 2 * std::size_t(height));
+  device.kernel("metrics.cl", "squared_error_rows").args(width, height, channels, a, b, m, se_rows).launch(height, 1);
   const std::uint32_t ssim_rows = height - 2 * kRadius;
-  Buffer<float> ssim_sums(device, ssim_rows), taps(device, gaussian_taps());
-  device.kernel("metrics.cl", "ssim_rows").args(width, height, channels, a, b, taps, ssim_sums).launch(ssim_rows, 1);
+  Buffer<float> ssim_sums(device, 3 * std::size_t(ssim_rows)), taps(device, gaussian_taps());
+  device.kernel("metrics.cl", "ssim_rows").args(width, height, channels, a, b, m, taps, ssim_sums).launch(ssim_rows, 1);
 
+  const auto se = column_sums(se_rows, 2), ss = column_sums(ssim_sums, 3), obj = column_sums(object_sums, 3);
+  const auto psnr = [](double mse) {
+    return mse > 0 ? 10.0 * std::log10(1.0 / mse) : std::numeric_limits<double>::infinity();
+  };
   ImageComparison result;
-  result.mse = sum_rows(se_rows) / double(n);
-  result.psnr = result.mse > 0 ? 10.0 * std::log10(1.0 / result.mse) : std::numeric_limits<double>::infinity();
-  result.ssim = sum_rows(ssim_sums) / (double(ssim_rows) * (width - 2 * kRadius) * channels);
+  result.mse = se[0] / double(n);
+  result.psnr = psnr(result.mse);
+  result.ssim = ss[0] / (double(ssim_rows) * (width - 2 * kRadius) * channels);
+  ObjectComparison& o = result.object;
+  o.pixels = static_cast<std::uint64_t>(obj[1]);
+  o.fraction = double(o.pixels) / double(pixels);
+  if (o.pixels > 0) {
+    o.mse = se[1] / (double(o.pixels) * channels);
+    o.psnr = psnr(o.mse);
+    o.rel_mse = obj[0] / (double(o.pixels) * channels);
+    o.clipped = obj[2] / double(o.pixels);
+    if (ss[2] > 0) o.ssim = ss[1] / (ss[2] * channels);
+  }
   return result;
 }
 

@@ -1,12 +1,14 @@
 // Evaluation reports: summaries, contact sheets, metrics.json / metrics.md, written atomically.
 #include <relit/error.hpp>
 #include <relit/io/file.hpp>
+#include <relit/log.hpp>
 #include <relit/report.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <mutex>
 #include <set>
 #include <sstream>
 #include <utility>
@@ -34,6 +36,19 @@ constexpr float kInferno[33][3] = {
     {0.978422f, 0.557937f, 0.034931f}, {0.985952f, 0.615750f, 0.025592f}, {0.987874f, 0.675267f, 0.065257f},
     {0.984075f, 0.736087f, 0.129527f}, {0.974638f, 0.797692f, 0.206332f}, {0.960626f, 0.859069f, 0.298010f},
     {0.947594f, 0.917399f, 0.410665f}, {0.954529f, 0.965896f, 0.540361f}, {0.988362f, 0.998364f, 0.644924f}};
+
+// Labelled sheets: text bands (DejaVu Sans, kFontSize px, light grey), the colour bar and the narrowest cell.
+constexpr int kFontSize = 11, kLabelBand = 15, kBarHeight = 8, kMinLabelledCell = 72;
+constexpr float kTextLinear = 0.8f;
+
+void warn_missing_font() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    log_warning(
+        "contact sheets: the DejaVu Sans font was not found (Debian: fonts-dejavu-core); the sheets have no "
+        "titles or captions");
+  });
+}
 
 // Linear value of the dark grey between panels (sRGB ≈ 0.1: distinct from the colour map's near-black zero).
 constexpr float kGutterLinear = 0.01f;
@@ -86,11 +101,32 @@ std::string scientific(double v) {
   return buf;
 }
 
+// A metric that may be missing (NaN: no object pixels) is shown as "–".
+std::string maybe(double v, int digits) { return std::isnan(v) ? "–" : fixed(v, digits); }
+std::string maybe_scientific(double v) { return std::isnan(v) ? "–" : scientific(v); }
+std::string percent(double v) { return std::isnan(v) ? "–" : fixed(100.0 * v, 1) + " %"; }
+
 // JSON has no infinity (a perfect view's PSNR): null.
 OrderedJson number(double v) { return std::isfinite(v) ? OrderedJson(v) : OrderedJson(nullptr); }
 
 OrderedJson means(const SplitSummary& s) {
-  return {{"n_views", s.n_views}, {"psnr", number(s.psnr)}, {"ssim", number(s.ssim)}, {"mse", number(s.mse)}};
+  return {{"n_views", s.n_views},
+          {"psnr", number(s.psnr)},
+          {"ssim", number(s.ssim)},
+          {"mse", number(s.mse)},
+          {"object",
+           {{"psnr", number(s.object_psnr)},
+            {"ssim", number(s.object_ssim)},
+            {"rel_mse", number(s.object_rel_mse)},
+            {"clipped", number(s.object_clipped)},
+            {"fraction", number(s.object_fraction)}}}};
+}
+
+OrderedJson view_object(const metrics::ImageComparison& m) {
+  return {{"pixels", m.object.pixels},          {"fraction", number(m.object.fraction)},
+          {"psnr", number(m.object.psnr)},      {"ssim", number(m.object.ssim)},
+          {"mse", number(m.object.mse)},        {"rel_mse", number(m.object.rel_mse)},
+          {"clipped", number(m.object.clipped)}};
 }
 
 // A Markdown table cell: '|' would end the cell, a line break the table.
@@ -130,19 +166,45 @@ std::vector<std::string> sheet_view_names(const std::vector<const ViewResult*>& 
 
 std::string sheet_file(const std::string& split) { return "contact_sheet_" + split + ".png"; }
 
-void add_means(SplitSummary& s, const ViewResult& v) {
-  ++s.n_views;
-  s.psnr += v.metrics.psnr;
-  s.ssim += v.metrics.ssim;
-  s.mse += v.metrics.mse;
+// The object metrics of a view, in SplitSummary's order of object_psnr ... object_fraction.
+std::array<double, 5> object_values(const ViewResult& v) {
+  const auto& o = v.metrics.object;
+  return {o.psnr, o.ssim, o.rel_mse, o.clipped, o.pixels ? o.fraction : std::nan("")};
 }
 
-void finish_means(SplitSummary& s) {
-  if (s.n_views == 0) return;
-  s.psnr /= double(s.n_views);
-  s.ssim /= double(s.n_views);
-  s.mse /= double(s.n_views);
+std::array<double*, 5> object_fields(SplitSummary& s) {
+  return {&s.object_psnr, &s.object_ssim, &s.object_rel_mse, &s.object_clipped, &s.object_fraction};
 }
+
+// Sums, and how many views have each object metric (NaN: the view has none).
+struct Accumulator {
+  SplitSummary sums;
+  std::array<std::size_t, 5> counts{};
+  void add(const ViewResult& v) {
+    ++sums.n_views;
+    sums.psnr += v.metrics.psnr;
+    sums.ssim += v.metrics.ssim;
+    sums.mse += v.metrics.mse;
+    const auto values = object_values(v);
+    const auto fields = object_fields(sums);
+    for (std::size_t k = 0; k < values.size(); ++k)
+      if (!std::isnan(values[k])) {
+        *fields[k] += values[k];
+        ++counts[k];
+      }
+  }
+  SplitSummary mean() {
+    SplitSummary s = sums;
+    if (s.n_views == 0) return s;
+    s.psnr /= double(s.n_views);
+    s.ssim /= double(s.n_views);
+    s.mse /= double(s.n_views);
+    const auto fields = object_fields(s);
+    for (std::size_t k = 0; k < fields.size(); ++k)
+      *fields[k] = counts[k] ? *fields[k] / double(counts[k]) : std::nan("");
+    return s;
+  }
+};
 
 }  // namespace
 
@@ -171,27 +233,27 @@ void validate(const std::vector<ViewResult>& views) {
 }
 
 std::vector<SplitSummary> summarize(const std::vector<ViewResult>& views) {
-  std::vector<SplitSummary> out;
+  std::vector<Accumulator> acc;
   for (const auto& v : views) {
-    auto it = std::find_if(out.begin(), out.end(), [&](const SplitSummary& s) { return s.split == v.split; });
-    if (it == out.end()) {
-      out.push_back({});
-      out.back().split = v.split;
-      it = out.end() - 1;
+    auto it = std::find_if(acc.begin(), acc.end(), [&](const Accumulator& a) { return a.sums.split == v.split; });
+    if (it == acc.end()) {
+      acc.push_back({});
+      acc.back().sums.split = v.split;
+      it = acc.end() - 1;
     }
-    add_means(*it, v);
+    it->add(v);
   }
-  for (auto& s : out) finish_means(s);
+  std::vector<SplitSummary> out;
+  for (auto& a : acc) out.push_back(a.mean());
   return out;
 }
 
 SplitSummary overall(const std::vector<ViewResult>& views) {
   if (views.empty()) throw InvalidArgument("report: no views to average");
-  SplitSummary all;
-  all.split = "all";
-  for (const auto& v : views) add_means(all, v);
-  finish_means(all);
-  return all;
+  Accumulator all;
+  all.sums.split = "all";
+  for (const auto& v : views) all.add(v);
+  return all.mean();
 }
 
 std::vector<std::size_t> select_rows(std::size_t n_views, std::size_t max_rows) {
@@ -241,11 +303,18 @@ Image contact_sheet(const std::vector<const ViewResult*>& views, const ContactSh
     h = std::max(h, int(v->height));
   }
   const int g = options.gutter;
-  Image sheet(3 * w + 4 * g, int(rows.size()) * (h + g) + g, 3, kGutterLinear);
+  // With labels: a title band above the panels, a caption band under each row and the colour bar at the bottom;
+  // cells at least kMinLabelledCell wide so that a caption fits.
+  const int band = options.labels ? kLabelBand : 0;
+  if (options.labels) w = std::max(w, kMinLabelledCell);
+  const int row_pitch = h + band + g, rows_top = g + band;
+  const int bar_top = rows_top + int(rows.size()) * row_pitch;
+  const int height = options.labels ? bar_top + kBarHeight + band + g : bar_top;
+  Image sheet(3 * w + 4 * g, height, 3, kGutterLinear);
+  const int x_pred = g, x_ref = 2 * g + w, x_err = 3 * g + 2 * w;
   for (std::size_t r = 0; r < rows.size(); ++r) {
     const ViewResult& v = *rows[r];
-    const int y0 = g + int(r) * (h + g);
-    const int x_pred = g, x_ref = 2 * g + w, x_err = 3 * g + 2 * w;
+    const int y0 = rows_top + int(r) * row_pitch;
     for (int y = 0; y < int(v.height); ++y)
       for (int x = 0; x < int(v.width); ++x) {
         const std::size_t i = (std::size_t(y) * v.width + x) * 3;
@@ -261,6 +330,33 @@ Image contact_sheet(const std::vector<const ViewResult*>& views, const ContactSh
         for (int c = 0; c < 3; ++c) sheet.at(x_err + x, y0 + y, c) = srgb_to_linear(colour[c]);
       }
   }
+  if (!options.labels) return sheet;
+
+  bool drawn = true;
+  const auto text = [&](int x, int y, const std::string& s, TextAlign align) {
+    drawn = draw_text(sheet, x, y, s, kFontSize, kTextLinear, align) && drawn;
+  };
+  text(x_pred + w / 2, g + 1, "prediction", TextAlign::Center);
+  text(x_ref + w / 2, g + 1, "reference", TextAlign::Center);
+  text(x_err + w / 2, g + 1, "error", TextAlign::Center);
+  for (std::size_t r = 0; r < rows.size(); ++r) {
+    const ViewResult& v = *rows[r];
+    std::string caption = v.name + ": " + (std::isfinite(v.metrics.psnr) ? fixed(v.metrics.psnr, 2) + " dB" : "exact");
+    if (!std::isnan(v.metrics.object.psnr))
+      caption +=
+          " (object " + (std::isfinite(v.metrics.object.psnr) ? fixed(v.metrics.object.psnr, 2) + " dB)" : "exact)");
+    text(x_pred, rows_top + int(r) * row_pitch + h + 1, caption, TextAlign::Left);
+  }
+  // The colour bar: the error column's width, 0 on the left to error_scale (and above) on the right.
+  for (int x = 0; x < w; ++x) {
+    const auto colour = error_colour(w > 1 ? float(x) / float(w - 1) : 0.0f);
+    for (int y = 0; y < kBarHeight; ++y)
+      for (int c = 0; c < 3; ++c) sheet.at(x_err + x, bar_top + y, c) = srgb_to_linear(colour[c]);
+  }
+  text(x_err, bar_top + kBarHeight + 1, "0", TextAlign::Left);
+  text(x_err + w - 1, bar_top + kBarHeight + 1, ">= " + fixed(options.error_scale, 2), TextAlign::Right);
+  text(x_err - g - 2, bar_top - 1, "|sRGB error|", TextAlign::Right);
+  if (!drawn) warn_missing_font();
   return sheet;
 }
 
@@ -287,7 +383,8 @@ std::string metrics_json(const std::vector<ViewResult>& views, const ReportOptio
                           {"height", v.height},
                           {"psnr", number(v.metrics.psnr)},
                           {"ssim", number(v.metrics.ssim)},
-                          {"mse", number(v.metrics.mse)}});
+                          {"mse", number(v.metrics.mse)},
+                          {"object", view_object(v.metrics)}});
   return j.dump(2) + "\n";
 }
 
@@ -307,27 +404,42 @@ std::string metrics_markdown(const std::vector<ViewResult>& views, const ReportO
     }
     md << "\n";
   }
-  md << "## Summary\n\n| split | views | PSNR [dB] | SSIM | MSE |\n|---|---:|---:|---:|---:|\n";
+  md << "## Summary\n\n"
+     << "Image: the paper's protocol, over the whole image on clamped sRGB. Object: over the pixels where the "
+        "reference's "
+        "or the prediction's alpha exceeds "
+     << fixed(metrics::kObjectAlpha, 2)
+     << "; relMSE on the linear images, (p - r)² / (r² + 0.01); "
+        "clipped: the share of the object's pixels whose reference clips in sRGB (docs/evaluation.md).\n\n"
+     << "| split | views | PSNR [dB] | SSIM | MSE | object PSNR [dB] | object SSIM | object relMSE | clipped | "
+        "object share |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+  const auto summary_row = [&](const SplitSummary& s, const std::string& name) {
+    md << "| " << name << " | " << s.n_views << " | " << fixed(s.psnr, 2) << " | " << fixed(s.ssim, 4) << " | "
+       << scientific(s.mse) << " | " << maybe(s.object_psnr, 2) << " | " << maybe(s.object_ssim, 4) << " | "
+       << maybe_scientific(s.object_rel_mse) << " | " << percent(s.object_clipped) << " | "
+       << percent(s.object_fraction) << " |\n";
+  };
   const auto summaries = summarize(views);
-  for (const auto& s : summaries)
-    md << "| " << cell(s.split) << " | " << s.n_views << " | " << fixed(s.psnr, 2) << " | " << fixed(s.ssim, 4) << " | "
-       << scientific(s.mse) << " |\n";
-  const SplitSummary all = overall(views);
-  md << "| **mean** | " << all.n_views << " | " << fixed(all.psnr, 2) << " | " << fixed(all.ssim, 4) << " | "
-     << scientific(all.mse) << " |\n";
+  for (const auto& s : summaries) summary_row(s, cell(s.split));
+  summary_row(overall(views), "**mean**");
 
   for (const auto& s : summaries) {
     const auto of = views_of(views, s.split);
     const auto shown = sheet_view_names(of, options.sheet.max_rows);
     md << "\n## " << s.split << "\n\n![" << s.split << " contact sheet](" << sheet_file(s.split) << ")\n\n"
-       << "Rows: prediction | reference | error (mean absolute difference of the sRGB images, colour map "
-       << "'inferno': black = 0, yellow ≥ " << fixed(options.sheet.error_scale, 2) << "). Shown: ";
+       << "Columns: prediction | reference | error (mean absolute difference of the sRGB images, colour map "
+       << "'inferno': black = 0, yellow ≥ " << fixed(options.sheet.error_scale, 2)
+       << "; the bar under the sheet). Shown: ";
     for (std::size_t i = 0; i < shown.size(); ++i) md << (i ? ", " : "") << shown[i];
     md << " (" << shown.size() << " of " << of.size() << (of.size() == 1 ? " view).\n\n" : " views).\n\n")
-       << "| view | PSNR [dB] | SSIM | MSE |\n|---|---:|---:|---:|\n";
-    for (const auto* v : of)
-      md << "| " << cell(v->name) << " | " << fixed(v->metrics.psnr, 2) << " | " << fixed(v->metrics.ssim, 4) << " | "
-         << scientific(v->metrics.mse) << " |\n";
+       << "| view | PSNR [dB] | SSIM | MSE | object PSNR [dB] | object SSIM | object relMSE | clipped "
+          "|\n|---|---:|---:|---:|---:|---:|---:|---:|\n";
+    for (const auto* v : of) {
+      const auto& m = v->metrics;
+      md << "| " << cell(v->name) << " | " << fixed(m.psnr, 2) << " | " << fixed(m.ssim, 4) << " | "
+         << scientific(m.mse) << " | " << maybe(m.object.psnr, 2) << " | " << maybe(m.object.ssim, 4) << " | "
+         << maybe_scientific(m.object.rel_mse) << " | " << percent(m.object.clipped) << " |\n";
+    }
   }
   return md.str();
 }
@@ -365,9 +477,13 @@ void write_report(const std::string& dir, const std::vector<ViewResult>& views, 
 std::string format_summary_lines(const std::vector<ViewResult>& views) {
   const SplitSummary all = overall(views);
   std::ostringstream out;
-  for (const auto& s : summarize(views))
-    out << s.split << ": PSNR " << fixed(s.psnr, 2) << " dB  SSIM " << fixed(s.ssim, 4) << " (" << s.n_views
-        << (s.n_views == 1 ? " view)\n" : " views)\n");
+  for (const auto& s : summarize(views)) {
+    out << s.split << ": PSNR " << fixed(s.psnr, 2) << " dB  SSIM " << fixed(s.ssim, 4);
+    if (!std::isnan(s.object_psnr))
+      out << "  | object: PSNR " << fixed(s.object_psnr, 2) << " dB  SSIM " << maybe(s.object_ssim, 4) << "  relMSE "
+          << scientific(s.object_rel_mse) << "  clipped " << percent(s.object_clipped);
+    out << " (" << s.n_views << (s.n_views == 1 ? " view)\n" : " views)\n");
+  }
   // The two parsable lines: "PSNR <value>" first, then which views the mean is of.
   const auto splits = summarize(views);
   std::string of =

@@ -32,6 +32,15 @@ Image read_image(const std::string& path);
 /// InvalidArgument for an empty image or an unsupported extension.
 void write_image(const std::string& path, const Image& image);
 
+enum class TextAlign { Left, Center, Right };
+
+/// Draws one line of `text` into `image` (any channel count, linear values) with its top at `y` and its left
+/// edge, centre or right edge at `x`, `size` pixels high, every channel set to `value` under the glyphs (an
+/// "over" with the glyphs' coverage), clipped to the image. The font is DejaVu Sans (Debian's
+/// fonts-dejavu-core), found by OpenImageIO. Returns false, drawing nothing, when the font cannot be found.
+bool draw_text(Image& image, int x, int y, const std::string& text, int size, float value,
+               TextAlign align = TextAlign::Left);
+
 /// sRGB transfer function of a linear value clamped to [0, 1].
 float linear_to_srgb(float linear);
 float srgb_to_linear(float encoded);

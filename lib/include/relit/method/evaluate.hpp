@@ -9,6 +9,7 @@
 
 #include <relit/method/model.hpp>
 #include <relit/progress.hpp>
+#include <relit/metrics.hpp>
 #include <relit/report.hpp>
 
 #include <string>

@@ -195,6 +195,7 @@ class MediumModel : public Model {
   std::unique_ptr<ModelPass> make_pass() const override { return std::make_unique<MediumPass>(); }
   void render(ModelPass& pass, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& options) const override;
   const Buffer<float>& color(const ModelPass& pass, std::uint32_t i) const override;
+  const Buffer<float>& transmittance(const ModelPass& pass) const override;
   void backward(ModelPass& pass, const Buffer<float>& rays, const std::vector<const Buffer<float>*>& d_colors,
                 const PassOptions& options) override;
   double train_visibility(ModelPass& pass, const Buffer<float>& rays, const nn::Loss& loss, Buffer<float>& value,

@@ -127,6 +127,9 @@ class Model {
   virtual std::uint32_t n_colors() const { return 1; }
   /// Colour `i` of the last pass, n_rays x 3 rows (linear RGB).
   virtual const Buffer<float>& color(const ModelPass& pass, std::uint32_t i) const = 0;
+  /// The transmittance of the last pass's rays through the model's image (the last colour's samples): n_rays
+  /// values, 1 - the pixel's alpha.
+  virtual const Buffer<float>& transmittance(const ModelPass& pass) const = 0;
   /// Given dL/dcolour i (n_rays x 3 rows) for every colour: writes dL/dθ into grads() (overwriting). ψ gets
   /// nothing (gradient isolation). `options` as given to the training render().
   virtual void backward(ModelPass& pass, const Buffer<float>& rays, const std::vector<const Buffer<float>*>& d_colors,

@@ -31,10 +31,12 @@ struct ImageRenderSettings {
   /// Light the scene with this environment map as well (a model trained on 'env+point' data; it is sampled
   /// in model/environment/n_dirs directions). Null: the point light alone.
   const EnvironmentLight* environment = nullptr;
+  /// Also the alpha (1 - the camera ray's transmittance, averaged over the pixel's rays): RGBA out.
+  bool alpha = false;
 };
 
-/// Renders `camera`'s image under `light` with the model: linear RGB (3 channels), in tiles, with progress
-/// counted in rays (pixels x spp).
+/// Renders `camera`'s image under `light` with the model: linear RGB (RGBA with settings.alpha), in tiles, with
+/// progress counted in rays (pixels x spp).
 Image render_image(const Model& model, const Camera& camera, const PointLight& light,
                    const ImageRenderSettings& settings = {}, const ProgressCallback& progress = {});
 
