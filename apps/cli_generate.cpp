@@ -92,7 +92,12 @@ void add_generate_command(CLI::App& app) {
       ->check(number_in(0.05, 3.0))
       ->capture_default_str();
   cmd->add_flag("--generalization", s.generalization,
-                "also write test sets at light distances 3, 5, 7, 10 and intensities 400, 800, 1200, 1600");
+                "also write test sets at light distances 3, 5, 7, 10 and intensities 400, 800, 1200, 1600 "
+                "(2/3, 4/3, 2, 8/3 of --generalization-intensity)");
+  cmd->add_option("--generalization-intensity", s.generalization_intensity,
+                  "W/sr of the light-distance sets and the unit of the light-intensity sets")
+      ->check(number_in(1e-3, 1e9))
+      ->capture_default_str();
   cmd->add_option("--generalization-views", s.generalization_views, "views per generalisation test set")
       ->check(integer_in(1, 100000))
       ->capture_default_str();

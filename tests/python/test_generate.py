@@ -73,3 +73,15 @@ def test_cli_generate_writes_a_dataset_with_progress(tmp_path):
     assert (out / "environment.exr").exists() and (out / "transforms_test.json").exists()
     bad = run_python(["-m", "relit", "generate", "--scene", "nebula", "--out", str(tmp_path / "x")])
     assert bad.returncode != 0 and "unknown built-in scene 'nebula'" in bad.stderr
+
+
+def test_cli_generalization_sets_scale_with_their_intensity(tmp_path):
+    out = tmp_path / "gen"
+    r = run_python(["-m", "relit", "generate", "--scene", "smoke", "--scene-resolution", "8", "--resolution", "8",
+                    "--train", "1", "--val", "0", "--test", "1", "--spp", "1", "--generalization",
+                    "--generalization-views", "1", "--generalization-intensity", "90", "--out", str(out)])
+    assert r.returncode == 0, r.stderr
+    for value in (60, 120, 180, 240):  # 2/3, 4/3, 2 and 8/3 of 90 W/sr
+        frames = json.loads((out / f"transforms_test_intensity_{value}.json").read_text())["frames"]
+        assert frames[0]["light"]["intensity"] == [value, value, value]
+    assert json.loads((out / "transforms_test_distance_7.json").read_text())["frames"][0]["light"]["intensity"] == [90] * 3
