@@ -37,7 +37,7 @@ int run_demo(const DemoOptions& o) {
     // Clean references, so that the metric measures the model rather than the path tracer's noise: against
     // 256-spp references the same model scores 1.6 dB lower (docs/method.md, "Results").
     s.test_spp = 1024;
-    // 80 W/sr at 3-5 units: under 3 % of the cloud's pixels clip in sRGB (at 600 W/sr, 37 % do, and PSNR cannot
+    // 80 W/sr at 3-5 units: 3.9 % of the cloud's test pixels clip in sRGB (at 600 W/sr, 37 % do, and PSNR cannot
     // see errors there; docs/evaluation.md, "Clipping").
     s.intensity_min = s.intensity_max = s.generalization_intensity = kDemoIntensity;
     s.generalization = true;

@@ -25,12 +25,11 @@ __kernel void to_srgb(const uint n, __global float* restrict image) {
 }
 
 // Per row y, on the linear images (before to_srgb), over the object's pixels (mask != 0), all channels:
-// row_sums[3y] = sum of (a - b)^2 / (b^2 + REL_MSE_EPS) (b is the reference), row_sums[3y + 1] = the object's
+// row_sums[3y] = sum of (a - b)^2 / (b^2 + rel_eps) (b is the reference), row_sums[3y + 1] = the object's
 // pixels, row_sums[3y + 2] = those of them whose reference has a channel above 1 (clips in sRGB).
-#define REL_MSE_EPS 0.01f
-__kernel void object_rows(const uint width, const uint height, const uint channels, __global const float* restrict a,
-                          __global const float* restrict b, __global const uchar* restrict mask,
-                          __global float* restrict row_sums) {
+__kernel void object_rows(const uint width, const uint height, const uint channels, const float rel_eps,
+                          __global const float* restrict a, __global const float* restrict b,
+                          __global const uchar* restrict mask, __global float* restrict row_sums) {
   const uint y = get_global_id(0);
   if (y >= height) return;
   float rel = 0.0f, pixels = 0.0f, clipped = 0.0f;
@@ -42,7 +41,7 @@ __kernel void object_rows(const uint width, const uint height, const uint channe
     for (uint c = 0; c < channels; ++c) {
       const float va = a[p * channels + c], vb = b[p * channels + c];
       const float d = va - vb;
-      rel += d * d / fma(vb, vb, REL_MSE_EPS);
+      rel += d * d / fma(vb, vb, rel_eps);
       clips = clips || vb > 1.0f;
     }
     if (clips) clipped += 1.0f;

@@ -37,7 +37,7 @@ struct ObjectComparison {
   double mse = kNone;        ///< mean squared error of the sRGB-encoded images over the object
   double psnr = kNone;       ///< 10 log10(1 / mse) dB
   double ssim = kNone;       ///< mean SSIM over the object's interior pixels (NaN when none is interior)
-  double rel_mse = kNone;    ///< mean over the object and channels of (a - b)^2 / (b^2 + 0.01), linear, unclamped
+  double rel_mse = kNone;    ///< mean over the object and channels of (a - b)^2 / (b^2 + kRelMseEpsilon), linear
   double clipped = kNone;    ///< share of the object's pixels whose reference has a channel above 1
 };
 

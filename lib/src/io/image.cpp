@@ -271,6 +271,18 @@ void write_image(const std::string& path, const Image& image) {
   io::replace_file(tmp.string(), target.string());
 }
 
+std::pair<std::vector<float>, std::vector<float>> split_rgb_alpha(const Image& img) {
+  if (img.channels < 3)
+    throw InvalidArgument("split_rgb_alpha: an image of " + std::to_string(img.channels) + " channels has no RGB");
+  const std::size_t pixels = std::size_t(img.width) * img.height;
+  std::vector<float> rgb(pixels * 3), alpha(img.channels >= 4 ? pixels : 0);
+  for (std::size_t p = 0; p < pixels; ++p) {
+    for (int c = 0; c < 3; ++c) rgb[p * 3 + c] = img.pixels[p * img.channels + c];
+    if (!alpha.empty()) alpha[p] = img.pixels[p * img.channels + 3];
+  }
+  return {std::move(rgb), std::move(alpha)};
+}
+
 bool draw_text(Image& image, int x, int y, const std::string& text, int size, float value, TextAlign align) {
   if (image.empty() || text.empty() || size <= 0) return true;
   OIIO::ImageBuf buf(OIIO::ImageSpec(image.width, image.height, image.channels, OIIO::TypeDesc::FLOAT),

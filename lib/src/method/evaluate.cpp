@@ -39,12 +39,9 @@ std::vector<report::ViewResult> evaluate(const Model& model, const std::string& 
   };
   const auto compare = [&](std::size_t k, std::vector<float>&& rgba) {
     const auto& [split, i] = order[k];
-    const std::size_t pixels = std::size_t(split->width) * split->height;
-    std::vector<float> prediction(pixels * 3), alpha(pixels);
-    for (std::size_t p = 0; p < pixels; ++p) {
-      for (int c = 0; c < 3; ++c) prediction[p * 3 + c] = rgba[p * 4 + c];
-      alpha[p] = rgba[p * 4 + 3];
-    }
+    Image image(split->width, split->height, 4);
+    image.pixels = std::move(rgba);
+    auto [prediction, alpha] = split_rgb_alpha(image);
     report::ViewResult v;
     v.split = split->split;
     v.name = split->names[i];
@@ -52,7 +49,7 @@ std::vector<report::ViewResult> evaluate(const Model& model, const std::string& 
     v.height = static_cast<std::uint32_t>(split->height);
     v.prediction = std::move(prediction);
     v.reference = split->image(i);
-    const auto mask = metrics::object_mask(split->alpha(i), alpha, pixels);
+    const auto mask = metrics::object_mask(split->alpha(i), alpha, alpha.size());
     v.metrics = metrics::compare(model.device(), v.prediction, v.reference, v.width, v.height, 3, &mask);
     views.push_back(std::move(v));
     tracker.update(views.size(), split->split + "/" + split->names[i]);

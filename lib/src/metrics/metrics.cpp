@@ -67,7 +67,9 @@ ImageComparison compare(const Device& device, const std::vector<float>& predicti
   const auto count = static_cast<std::uint32_t>(n);
   // The linear images first: the object's relative MSE and clipped pixels.
   Buffer<float> object_sums(device, 3 * std::size_t(height));
-  device.kernel("metrics.cl", "object_rows").args(width, height, channels, a, b, m, object_sums).launch(height, 1);
+  device.kernel("metrics.cl", "object_rows")
+      .args(width, height, channels, float(kRelMseEpsilon), a, b, m, object_sums)
+      .launch(height, 1);
   device.kernel("metrics.cl", "to_srgb").args(count, a).launch(count, 64);
   device.kernel("metrics.cl", "to_srgb").args(count, b).launch(count, 64);
 

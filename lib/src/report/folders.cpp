@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <map>
+#include <set>
 
 namespace fs = std::filesystem;
 
@@ -74,17 +75,6 @@ bool is_dataset(const std::string& dir) {
   return false;
 }
 
-// RGB and alpha (empty without one) of an image file.
-std::pair<std::vector<float>, std::vector<float>> rgb_alpha(const Image& img) {
-  const std::size_t pixels = std::size_t(img.width) * img.height;
-  std::vector<float> rgb(pixels * 3), alpha(img.channels >= 4 ? pixels : 0);
-  for (std::size_t p = 0; p < pixels; ++p) {
-    for (int c = 0; c < 3; ++c) rgb[p * 3 + c] = img.pixels[p * img.channels + c];
-    if (!alpha.empty()) alpha[p] = img.pixels[p * img.channels + 3];
-  }
-  return {std::move(rgb), std::move(alpha)};
-}
-
 Image read_rgb_image(const std::string& path) {
   Image img = read_image(path);
   if (img.channels < 3)
@@ -118,11 +108,11 @@ FolderComparison compare_folders(const Device& device, const std::string& predic
                   "folder and file name, any image extension (test/r_000.exr for test/r_000.png)");
   }
   FolderComparison out;
-  std::map<std::string, bool> used;
+  std::set<std::string> referenced;
   ProgressTracker tracker(progress, refs.size(), "views");
   for (const auto& [key, ref_path] : refs) {
     const std::string& pred_path = predicted.at(key);
-    used[key] = true;
+    referenced.insert(key);
     const Image ref = read_rgb_image(ref_path), pred = read_rgb_image(pred_path);
     if (ref.width != pred.width || ref.height != pred.height)
       throw IOError(pred_path + " is " + std::to_string(pred.width) + "x" + std::to_string(pred.height) +
@@ -133,8 +123,8 @@ FolderComparison compare_folders(const Device& device, const std::string& predic
     v.name = key.substr(key.find('/') + 1);
     v.width = std::uint32_t(ref.width);
     v.height = std::uint32_t(ref.height);
-    auto [ref_rgb, ref_alpha] = rgb_alpha(ref);
-    auto [pred_rgb, pred_alpha] = rgb_alpha(pred);
+    auto [ref_rgb, ref_alpha] = split_rgb_alpha(ref);
+    auto [pred_rgb, pred_alpha] = split_rgb_alpha(pred);
     v.prediction = std::move(pred_rgb);
     v.reference = std::move(ref_rgb);
     for (const auto* img : {&v.prediction, &v.reference})
@@ -147,7 +137,7 @@ FolderComparison compare_folders(const Device& device, const std::string& predic
     tracker.update(out.views.size(), key);
   }
   for (const auto& [key, path] : predicted)
-    if (!used.count(key)) out.unmatched_predictions.push_back(path);
+    if (!referenced.count(key)) out.unmatched_predictions.push_back(path);
   return out;
 }
 

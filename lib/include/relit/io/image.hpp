@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace relit {
@@ -31,6 +32,10 @@ Image read_image(const std::string& path);
 /// Writes `image` to `path` (format by extension, see above) atomically. Throws IOError on failure and
 /// InvalidArgument for an empty image or an unsupported extension.
 void write_image(const std::string& path, const Image& image);
+
+/// The first three channels of an image with three or more (RGB, h x w x 3) and its fourth (alpha, h x w; empty
+/// with three channels). Throws InvalidArgument for fewer than three.
+std::pair<std::vector<float>, std::vector<float>> split_rgb_alpha(const Image& image);
 
 enum class TextAlign { Left, Center, Right };
 

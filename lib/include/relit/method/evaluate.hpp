@@ -9,7 +9,6 @@
 
 #include <relit/method/model.hpp>
 #include <relit/progress.hpp>
-#include <relit/metrics.hpp>
 #include <relit/report.hpp>
 
 #include <string>
