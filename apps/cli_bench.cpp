@@ -52,6 +52,7 @@ struct BenchOptions {
   bool quick = false;
   std::string inject_error;  // a case whose result is corrupted before verification (tests the failure path)
   std::string filter;        // run only the cases whose name contains this
+  double peak_seconds = 0;   // length of one peak launch; 0: 0.25 s (0.05 s with --quick)
 };
 
 // One benchmark case. run() does one unit of work and waits for the device; verify() checks the results of the
@@ -140,36 +141,21 @@ reference::Mat rows_of(const std::vector<float>& row_major, std::uint32_t rows, 
 
 // ---- kernel cases ------------------------------------------------------------------------------------------
 
-// The calibrated FMA peak (kernels/peak.cl): independent accumulator chains, lane-varying data, result stored.
-using reference::peak_host;
-
-void add_peak(std::vector<Case>& cases, const Device& device, bool quick) {
+// The calibrated FMA peak (kernels/peak.cl): independent accumulator chains, lane-varying data, result stored,
+// each launch sized to run --peak-seconds (reference::PeakKernel says why a short launch under-reports).
+void add_peak(std::vector<Case>& cases, const Device& device, const BenchOptions& o) {
+  const double target = o.peak_seconds > 0 ? o.peak_seconds : (o.quick ? 0.05 : 0.25);
   for (const auto& [name, lanes] : {std::pair<std::string, unsigned>{"peak_fma_f16", 16}, {"peak_fma_f8", 8}}) {
-    const unsigned iters = quick ? 4096 : 8192;
     const std::size_t items = std::size_t(std::max(1u, device.info().compute_units)) * 256;
     auto buf = std::make_shared<Buffer<float>>(device, items);
-    auto kernel = std::make_shared<Kernel>(device.kernel("peak.cl", name));
-    const std::size_t local =
-        std::max<std::size_t>(1, std::min(kernel->preferred_work_group_multiple(), kernel->max_work_group_size()));
+    auto peak = std::make_shared<reference::PeakKernel>(device, name, lanes, items);
+    peak->calibrate(device, *buf, target);
     Case c;
     c.name = name;
     c.family = "peak";
-    c.flops = double(items) * 12 * lanes * 2 * iters;
-    c.run = [=, l = lanes] {
-      (void)l;
-      kernel->args(iters, 0.999f, *buf);
-      kernel->launch(items, local);
-      device.finish();
-    };
-    c.verify = [=, l = lanes] {
-      const auto got = buf->read();
-      double worst = 0;
-      for (std::size_t g = 0; g < items; g += std::max<std::size_t>(1, items / 16)) {
-        const double want = peak_host(g, iters, 0.999f, l);
-        worst = std::max(worst, std::fabs(got[g] - want) / (1e-4 * (std::fabs(want) + 1)));
-      }
-      return worst;
-    };
+    c.flops = peak->flops();
+    c.run = [=] { peak->launch(device, *buf); };
+    c.verify = [=] { return peak->verify(*buf); };
     c.corrupt = [=] { buf->fill(-1.0f); };
     cases.push_back(c);
   }
@@ -626,7 +612,7 @@ int run_bench(const BenchOptions& o) {
     std::vector<Case> cases;
     const auto t_setup = Clock::now();
     if (o.suite != "e2e") {
-      add_peak(cases, device, o.quick);
+      add_peak(cases, device, o);
       add_mlp(cases, device, o.quick);
       add_hashgrid(cases, device, o.quick);
       add_renderer(cases, device, o.quick);
@@ -701,6 +687,10 @@ void add_bench_command(CLI::App& app) {
       ->check(integer_in(1, 100000))
       ->capture_default_str();
   cmd->add_option("--filter", o->filter, "run only the cases whose name contains this text");
+  cmd->add_option("--peak-seconds", o->peak_seconds,
+                  "length of one launch of the peak calibration (default 0.25 s, 0.05 s with --quick); a "
+                  "longer one checks that the default is within noise of the sustained rate")
+      ->check(CLI::Range(0.001, 600.0));
   cmd->add_flag("--quick", o->quick, "small sizes: checks that everything runs and verifies (seconds)");
   cmd->add_option("--compare", o->compare,
                   "print the ratios between two result files A B (A / B of the median "

@@ -78,35 +78,18 @@ struct PeakResult {
   double gflops = 0;
 };
 
-using reference::peak_host;
-
 std::vector<PeakResult> measure_peak(const Device& device, const Options& o) {
   std::vector<PeakResult> out;
-  const unsigned iters = o.smoke ? 64 : 8192;
   const std::size_t items = o.smoke ? 64 : std::size_t(device.info().compute_units) * 256;
-  const float c = 0.999f;
   Buffer<float> buf(device, items);
   for (const auto& [name, lanes] : {std::pair<std::string, unsigned>{"peak_fma_f16", 16}, {"peak_fma_f8", 8}}) {
-    Kernel k = device.kernel("peak.cl", name);
-    const std::size_t local =
-        std::max<std::size_t>(1, std::min(k.preferred_work_group_multiple(), k.max_work_group_size()));
-    k.args(iters, c, buf);
-    k.launch(items, local);
-    device.finish();
-    const auto got = buf.read();
-    double worst = 0;
-    for (std::size_t g = 0; g < items; g += std::max<std::size_t>(1, items / 16)) {
-      const double want = peak_host(g, iters, c, lanes);
-      worst = std::max(worst, std::abs(got[g] - want) / (1e-4 * (std::abs(want) + 1)));
-    }
-    verify(name + " result", worst);
-    const double t = median_time(o.smoke ? 1 : 5, [&] {
-      k.launch(items, local);
-      device.finish();
-    });
-    const double flops = double(items) * 12 * lanes * 2 * iters;
-    out.push_back({name, flops / t * 1e-9});
-    std::printf("  %-14s %8.1f GFLOP/s\n", name.c_str(), flops / t * 1e-9);
+    reference::PeakKernel peak(device, name, lanes, items);
+    peak.calibrate(device, buf, o.smoke ? 0.005 : 0.25);
+    peak.launch(device, buf);
+    verify(name + " result", peak.verify(buf));
+    const double t = median_time(o.smoke ? 1 : 5, [&] { peak.launch(device, buf); });
+    out.push_back({name, peak.flops() / t * 1e-9});
+    std::printf("  %-14s %8.1f GFLOP/s (%.0f ms a launch)\n", name.c_str(), peak.flops() / t * 1e-9, t * 1e3);
   }
   return out;
 }

@@ -1,13 +1,21 @@
-// Host reference of the calibrated FMA peak kernels (kernels/peak.cl), shared by bench_mlp and relit bench.
+// The calibrated FMA peak (kernels/peak.cl), shared by bench_mlp and relit bench: its host reference and the
+// calibration of its launch length.
 #pragma once
 
+#include <relit/cl/buffer.hpp>
+#include <relit/cl/program.hpp>
+
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <string>
 
 namespace relit::reference {
 
 /// Work-item `gid`'s result: 12 chains x `lanes` lanes of `iters` FMAs a = a * c + b, summed chain by chain, then
-/// lane by lane (the kernel's order).
+/// lane by lane (the kernel's order). `c` must be below 1 in magnitude.
 inline float peak_host(std::size_t gid, unsigned iters, float c, unsigned lanes) {
   float s = 0.0f;
   const float base = static_cast<float>(gid % 64u) * 0.001f;
@@ -15,10 +23,78 @@ inline float peak_host(std::size_t gid, unsigned iters, float c, unsigned lanes)
     for (unsigned l = 0; l < lanes; ++l) {
       float a = std::fma(static_cast<float>(l), 0.01f, base + static_cast<float>(i) * 0.1f);
       const float b = std::fma(static_cast<float>(l), 0.001f, static_cast<float>(i) * 0.01f);
-      for (unsigned it = 0; it < iters; ++it) a = std::fma(a, c, b);
+      // The recurrence reaches a float fixed point after a few thousand steps (|c| < 1); from there on every
+      // step returns it unchanged, so a long calibration run need not be replayed step by step.
+      for (unsigned it = 0; it < iters; ++it) {
+        const float next = std::fma(a, c, b);
+        if (next == a) break;
+        a = next;
+      }
       s += a;
     }
   return s;
 }
+
+/// One peak kernel (peak_fma_f16 or peak_fma_f8) sized so that a launch runs about `target_seconds`.
+///
+/// A launch of a few milliseconds measures the device's start-up as much as its arithmetic: on a 2-core AVX-512
+/// CPU under PoCL, 4-7 ms launches gave 220-384 GFLOP/s in two runs against 444-457 sustained by a long loop.
+/// The iteration count is therefore grown until one launch takes at least a quarter of the target, then scaled
+/// to the target, so that thread wake-up, work distribution and clock ramps are a negligible share of the time.
+struct PeakKernel {
+  static constexpr float kFactor = 0.999f;  ///< the recurrence's c
+  std::string name;
+  unsigned lanes = 16;
+  Kernel kernel;
+  std::size_t items = 0, local = 1;
+  std::uint32_t iters = 0;
+
+  PeakKernel(const Device& device, std::string kernel_name, unsigned vector_lanes, std::size_t work_items)
+      : name(std::move(kernel_name)),
+        lanes(vector_lanes),
+        kernel(device.kernel("peak.cl", name)),
+        items(work_items),
+        local(
+            std::max<std::size_t>(1, std::min(kernel.preferred_work_group_multiple(), kernel.max_work_group_size()))) {}
+
+  /// FLOPs of one launch (an FMA counts 2).
+  double flops() const { return double(items) * 12 * lanes * 2 * iters; }
+
+  /// One launch with `iters` steps into `out` (items floats), waiting for it; returns its seconds.
+  double launch(const Device& device, Buffer<float>& out) {
+    kernel.args(iters, kFactor, out);
+    const auto t0 = std::chrono::steady_clock::now();
+    kernel.launch(items, local);
+    device.finish();
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+
+  /// Chooses `iters` for launches of about `target_seconds` (at least 1024 steps, at most 2^30).
+  void calibrate(const Device& device, Buffer<float>& out, double target_seconds) {
+    iters = 1024;
+    launch(device, out);  // builds the work-group function of this local size
+    for (;;) {
+      const double t = launch(device, out);
+      if (t >= target_seconds / 4 || iters >= (1u << 27)) {
+        const double scaled = double(iters) * target_seconds / std::max(t, 1e-9);
+        iters = std::uint32_t(std::clamp(scaled, 1024.0, double(1u << 30)));
+        return;
+      }
+      iters *= 8;
+    }
+  }
+
+  /// The worst error over tolerance of the last launch's results (<= 1 passes), checked on `checks` items.
+  double verify(const Buffer<float>& out, std::size_t checks = 8) const {
+    const auto got = out.read();
+    double worst = 0;
+    for (std::size_t g = 0; g < items; g += std::max<std::size_t>(1, items / checks)) {
+      const double want = peak_host(g, iters, kFactor, lanes);
+      const double e = std::fabs(got[g] - want) / (1e-4 * (std::fabs(want) + 1));
+      worst = std::max(worst, std::isfinite(e) ? e : 1e30);
+    }
+    return worst;
+  }
+};
 
 }  // namespace relit::reference
