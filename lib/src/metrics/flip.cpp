@@ -166,25 +166,37 @@ FlipResult flip(const Device& device, const std::vector<float>& prediction, cons
   const std::vector<float> taps = flip_taps(ppd, radius);
   const double cmax = flip_cmax();
   const std::size_t pixels = std::size_t(width) * height;
-  const auto n = static_cast<std::uint32_t>(pixels);
-  Buffer<float> a(device, prediction), b(device, reference), t(device, taps), error(device, pixels);
-  Buffer<cl_float4> ycc_a(device, pixels), ycc_b(device, pixels);
-  Buffer<cl_float8> rows_a(device, pixels), rows_b(device, pixels);
+  Buffer<float> a(device, prediction), b(device, reference), t(device, taps);
+  // kernels/flip.cl's planes, two images each: YCxCz (rows of span floats, the edges repeated radius times), then
+  // filtered along x and along y (rows of pitch floats, whole chunks of FLIP_CHUNK).
+  constexpr std::uint32_t kChunk = 16;
+  const auto pitch = static_cast<std::uint32_t>(round_up(width, kChunk)), span = pitch + 2 * std::uint32_t(radius);
+  const std::size_t pitched = std::size_t(pitch) * height;
+  Buffer<float> ycc(device, 6 * std::size_t(span) * height), along_x(device, 14 * pitched),
+      along_y(device, 14 * pitched), error(device, pitched);
   Kernel prepare = device.kernel("flip.cl", "flip_prepare");
   Kernel rows = device.kernel("flip.cl", "flip_rows");
   Kernel columns = device.kernel("flip.cl", "flip_columns");
-  rows.args(width, height, radius, t, ycc_a, ycc_b, rows_a, rows_b);
-  columns.arg(0, width).arg(1, height).arg(2, radius).arg(3, t).arg(4, rows_a).arg(5, rows_b);
-  columns.arg(6, float(cmax)).arg(7, float(kPc * cmax)).arg(9, error);
+  Kernel flip_error = device.kernel("flip.cl", "flip_error");
+  rows.args(height, pitch, radius, t, ycc, along_x);
+  columns.args(height, pitch, radius, t, along_x, along_y);
+  flip_error.args(height, pitch, along_y, float(cmax), float(kPc * cmax), std::uint32_t(1), error);
+  // Fixed work-group sizes: one compiled variant of each kernel for every image size.
+  const cl::NDRange chunks(pitch / kChunk, round_up(height, 8)), chunk_group(1, 8);
   const auto& e = result.exposures;
   const double step = e.count > 1 ? (e.stop - e.start) / (e.count - 1) : 0.0;
   for (std::uint32_t i = 0; i < e.count; ++i) {
     const float scale = hdr ? float(std::exp2(e.start + i * step)) : 1.0f;
-    prepare.args(n, channels, scale, std::uint32_t(hdr), a, b, ycc_a, ycc_b).launch(pixels, 64);
-    rows.launch(pixels, 64);
-    columns.arg(8, std::uint32_t(i == 0)).launch(pixels, 64);
+    prepare.args(width, height, span, radius, channels, scale, std::uint32_t(hdr), a, b, ycc)
+        .launch(cl::NDRange(round_up(span, 16), height), cl::NDRange(16, 1));
+    rows.launch(chunks, chunk_group);
+    columns.launch(chunks, chunk_group);
+    flip_error.arg(5, std::uint32_t(i == 0)).launch(chunks, chunk_group);
   }
-  result.error = error.read();
+  const std::vector<float> padded = error.read();
+  result.error.resize(pixels);
+  for (std::uint32_t y = 0; y < height; ++y)
+    std::copy_n(padded.begin() + std::size_t(y) * pitch, width, result.error.begin() + std::size_t(y) * width);
   for (float v : result.error) result.mean += v;
   result.mean /= double(pixels);
   return result;
