@@ -91,8 +91,8 @@ int run_eval(const EvalOptions& o) {
 void add_eval_command(CLI::App& app) {
   auto o = std::make_shared<EvalOptions>();
   auto* cmd = app.add_subcommand("eval",
-                                 "relight a run's test views (or compare any renderer's images) and report PSNR/SSIM, "
-                                 "the object's metrics (JSON, Markdown, contact sheets)");
+                                 "relight a run's test views (or compare any renderer's images) and report PSNR, "
+                                 "SSIM, HDR-FLIP and the object's metrics (JSON, Markdown, contact sheets)");
   cmd->add_option("run", o->run, "run folder written by relit train");
   cmd->add_option("--predictions", o->predictions,
                   "compare this folder's images with --references instead of rendering a run (any renderer's; "

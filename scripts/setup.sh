@@ -43,14 +43,14 @@ if ((${#missing[@]})); then
 fi
 
 # A virtual environment keeps the Python tools away from the system's packages (PEP 668).
-python_tools=(numpy pytest scikit-build-core pybind11 scikit-image matplotlib mitsuba)
+python_tools=(numpy pytest scikit-build-core pybind11 scikit-image matplotlib mitsuba flip-evaluator)
 if [ ! -x "$venv/bin/python" ]; then
   echo "setup: creating Python virtual environment $venv"
   python3 -m venv "$venv"
 fi
 if ! "$venv/bin/python" - "${python_tools[@]}" <<'PY' 2>/dev/null
 import importlib.util, sys
-names = {"scikit-build-core": "scikit_build_core", "scikit-image": "skimage"}
+names = {"scikit-build-core": "scikit_build_core", "scikit-image": "skimage", "flip-evaluator": "flip_evaluator"}
 sys.exit(any(importlib.util.find_spec(names.get(n, n)) is None for n in sys.argv[1:]))
 PY
 then

@@ -1,8 +1,10 @@
-// Python binding of the image metrics: relit.metrics.compare / psnr / ssim / object_mask on numpy images.
+// Python binding of the image metrics: relit.metrics.compare / psnr / ssim / flip / object_mask on numpy images.
 #include "bindings.hpp"
 #include "convert.hpp"
 
 #include <pybind11/numpy.h>
+
+#include <array>
 
 #include <relit/cl/device.hpp>
 #include <relit/error.hpp>
@@ -17,15 +19,20 @@ using Image = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
 using Mask = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
 
-metrics::ImageComparison compare(const Image& prediction, const Image& reference, const py::object& device,
-                                 const py::object& mask = py::none()) {
+// (height, width, channels) of two images of the same shape, (H, W) or (H, W, C).
+std::array<std::uint32_t, 3> shape_of(const Image& prediction, const Image& reference) {
   if (prediction.ndim() < 2 || prediction.ndim() > 3)
     throw InvalidArgument("images must be (height, width) or (height, width, channels) arrays");
   for (py::ssize_t i = 0; i < prediction.ndim(); ++i)
     if (reference.ndim() != prediction.ndim() || reference.shape(i) != prediction.shape(i))
       throw InvalidArgument("prediction and reference must have the same shape");
-  const auto h = static_cast<std::uint32_t>(prediction.shape(0)), w = static_cast<std::uint32_t>(prediction.shape(1));
-  const auto c = prediction.ndim() == 3 ? static_cast<std::uint32_t>(prediction.shape(2)) : 1u;
+  return {static_cast<std::uint32_t>(prediction.shape(0)), static_cast<std::uint32_t>(prediction.shape(1)),
+          prediction.ndim() == 3 ? static_cast<std::uint32_t>(prediction.shape(2)) : 1u};
+}
+
+metrics::ImageComparison compare(const Image& prediction, const Image& reference, const py::object& device,
+                                 const py::object& mask = py::none()) {
+  const auto [h, w, c] = shape_of(prediction, reference);
   std::vector<std::uint8_t> m;
   if (!mask.is_none()) {
     const auto arr = mask.cast<Mask>();
@@ -52,6 +59,7 @@ void bind_metrics(py::module_& root) {
         d["mse"] = c.mse;
         d["psnr"] = c.psnr;
         d["ssim"] = c.ssim;
+        d["flip"] = c.flip;
         py::dict o;
         o["pixels"] = c.object.pixels;
         o["fraction"] = c.object.fraction;
@@ -60,14 +68,54 @@ void bind_metrics(py::module_& root) {
         o["ssim"] = c.object.ssim;
         o["rel_mse"] = c.object.rel_mse;
         o["clipped"] = c.object.clipped;
+        o["flip"] = c.object.flip;
         d["object"] = o;
         return d;
       },
       py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none(), py::arg("mask") = py::none(),
-      "Linear float images (H, W[, C]) → {'mse', 'psnr', 'ssim', 'object': {...}}: PSNR/SSIM of their "
-      "clamped sRGB encodings over the image, and over the object's pixels (mask: (H, W), nonzero on the object; "
-      "see object_mask) with the linear relative MSE and the share of clipped reference pixels. NaN where there "
-      "is no object pixel.");
+      "Linear float images (H, W[, C]) → {'mse', 'psnr', 'ssim', 'flip', 'object': {...}}: PSNR/SSIM of their "
+      "clamped sRGB encodings and the mean HDR-FLIP over the image, and over the object's pixels (mask: (H, W), "
+      "nonzero on the object; see object_mask) with the linear relative MSE and the share of clipped reference "
+      "pixels. NaN where there is no object pixel.");
+  m.def(
+      "flip",
+      [](const Image& p, const Image& r, const std::string& range, double ppd, const py::object& start,
+         const py::object& stop, std::uint32_t exposures, const py::object& device) {
+        const auto [h, w, c] = shape_of(p, r);
+        metrics::FlipOptions o;
+        if (range != "hdr" && range != "ldr")
+          throw InvalidArgument("flip: range must be 'hdr' or 'ldr', not '" + range + "'");
+        o.range = range == "hdr" ? metrics::FlipRange::hdr : metrics::FlipRange::ldr;
+        o.pixels_per_degree = ppd;
+        if (!start.is_none()) o.start_exposure = start.cast<double>();
+        if (!stop.is_none()) o.stop_exposure = stop.cast<double>();
+        o.exposures = exposures;
+        const Device dev = device_arg(device);
+        std::vector<float> a(p.data(), p.data() + p.size()), b(r.data(), r.data() + r.size());
+        metrics::FlipResult f;
+        {
+          py::gil_scoped_release release;
+          f = metrics::flip(dev, a, b, w, h, c, o);
+        }
+        py::array_t<float> error({py::ssize_t(h), py::ssize_t(w)});
+        std::copy(f.error.begin(), f.error.end(), error.mutable_data());
+        py::dict e;
+        e["start"] = f.exposures.start;
+        e["stop"] = f.exposures.stop;
+        e["count"] = f.exposures.count;
+        py::dict d;
+        d["error"] = error;
+        d["mean"] = f.mean;
+        d["exposures"] = e;
+        return d;
+      },
+      py::arg("prediction"), py::arg("reference"), py::arg("range") = "hdr",
+      py::arg("pixels_per_degree") = metrics::kFlipPixelsPerDegree, py::arg("start_exposure") = py::none(),
+      py::arg("stop_exposure") = py::none(), py::arg("exposures") = 0, py::arg("device") = py::none(),
+      "FLIP of linear float images (H, W[, C]; R, G, B from the first three channels, one channel is grey) → "
+      "{'error': (H, W) per-pixel map in [0, 1], 'mean', 'exposures': {'start', 'stop', 'count'}}. range 'hdr' "
+      "(HDR-FLIP: ACES at count exposures from start to stop, by default from the reference) or 'ldr' (the images "
+      "clamped to [0, 1]); pixels_per_degree: the observer (67.02: a 0.7 m wide 4K monitor at 0.7 m).");
   m.def(
       "object_mask",
       [](const py::object& reference_alpha, const py::object& prediction_alpha) {

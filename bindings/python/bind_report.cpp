@@ -2,8 +2,9 @@
 //   views = [{"split": "test", "name": "r_000", "prediction": pred, "reference": ref}, ...]   # (H, W, 3) linear
 //   print(relit.write_report("runs/cloud/eval", views, meta={"method": "ours"}), end="")
 //   sheet = relit.contact_sheet(views, max_rows=8)                                          # (H, W, 3) float32
-// A view is a dict or any object with those attributes; its metrics come from "psnr", "ssim" and "mse" (or a
-// "metrics" dict/object holding them) when it has them, otherwise write_report computes them on the device.
+// A view is a dict or any object with those attributes; its metrics come from "psnr", "ssim" and "mse" and
+// optionally "flip" (or a "metrics" dict/object holding them) when it has them, otherwise write_report computes
+// them on the device.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
@@ -92,6 +93,8 @@ std::vector<report::ViewResult> views_from(const py::iterable& items, bool need_
       v.metrics.psnr = psnr.cast<double>();
       v.metrics.ssim = ssim.cast<double>();
       v.metrics.mse = mse.cast<double>();
+      const py::object flip = field(source, "flip");
+      if (!flip.is_none()) v.metrics.flip = flip.cast<double>();  // otherwise NaN: not computed, shown as '–'
     } else if (given != 0) {
       throw InvalidArgument(where + ": give all of psnr, ssim and mse, or none (then they are computed)");
     } else if (need_metrics) {
@@ -149,7 +152,7 @@ void bind_report(py::module_& m) {
       "`meta`), metrics.md, contact_sheet_<split>.png, and with write_predictions / write_exr each prediction as\n"
       "<split>/<name>.png / .exr. Every file is written atomically.\n\n"
       "views: dicts or objects with 'prediction' and 'reference' (linear float (H, W, 3) arrays), 'split'\n"
-      "(default 'test'), 'name' (default: the index) and optionally 'psnr', 'ssim', 'mse' (or 'metrics'\n"
+      "(default 'test'), 'name' (default: the index) and optionally 'psnr', 'ssim', 'mse', 'flip' (or 'metrics'\n"
       "holding them); missing metrics are computed with relit.metrics on `device`, over\n"
       "the object too where a view has 'reference_alpha' / 'prediction_alpha' ((H, W)).\n"
       "Returns the summary lines to print (one per split, then 'PSNR <mean>' and 'SSIM <mean>').");

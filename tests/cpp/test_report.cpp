@@ -93,6 +93,16 @@ TEST(Report, SummaryLinesEndWithTheParsableMeans) {
             "test: PSNR 25.25 dB  SSIM 0.8000 (2 views)\n"
             "PSNR 25.2500  (mean over the 2 test views)\n"
             "SSIM 0.8000  (mean over the 2 test views)\n");
+  // With FLIP (metrics::compare computes it): on the split's line, the parsable lines unchanged.
+  std::vector<ViewResult> with_flip = {views[0], views[1]};
+  with_flip[0].metrics.flip = 0.1;
+  with_flip[1].metrics.flip = 0.2;
+  EXPECT_EQ(report::format_summary_lines(with_flip),
+            "test: PSNR 25.25 dB  SSIM 0.8000  FLIP 0.1500 (2 views)\n"
+            "PSNR 25.2500  (mean over the 2 test views)\n"
+            "SSIM 0.8000  (mean over the 2 test views)\n");
+  with_flip[1].metrics.flip = 1.5;  // outside [0, 1]
+  EXPECT_THROW(report::validate(with_flip), InvalidArgument);
   EXPECT_THROW(report::format_summary_lines({}), InvalidArgument);
 }
 
@@ -339,6 +349,10 @@ TEST(Report, MetricsJsonAndMarkdownParseBack) {
   obj.mse = std::pow(10.0, -2.2);
   obj.rel_mse = 0.125;
   obj.clipped = 0.25;
+  obj.flip = 0.15;
+  // FLIP: a and b have it, c not (metrics given without it): the means are over a and b.
+  views[0].metrics.flip = 0.1;
+  views[1].metrics.flip = 0.3;
   report::ReportOptions o;
   o.meta = {{"method", "ours"}, {"steps", 3000}, {"config", {{"lr", 0.01}}}};
   o.sheet.max_rows = 1;
@@ -370,6 +384,13 @@ TEST(Report, MetricsJsonAndMarkdownParseBack) {
   EXPECT_DOUBLE_EQ(j["splits"]["test"]["object"]["psnr"].get<double>(), 22.0);
   EXPECT_DOUBLE_EQ(j["mean"]["object"]["rel_mse"].get<double>(), 0.125);
   EXPECT_DOUBLE_EQ(j["mean"]["object"]["clipped"].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(j["mean"]["flip"].get<double>(), 0.2);
+  EXPECT_DOUBLE_EQ(j["splits"]["test"]["flip"].get<double>(), 0.2);
+  EXPECT_TRUE(j["splits"]["test_light"]["flip"].is_null());
+  EXPECT_DOUBLE_EQ(j["mean"]["object"]["flip"].get<double>(), 0.15);
+  EXPECT_DOUBLE_EQ(j["views"][1]["flip"].get<double>(), 0.3);
+  EXPECT_TRUE(j["views"][2]["flip"].is_null());
+  EXPECT_DOUBLE_EQ(j["views"][0]["object"]["flip"].get<double>(), 0.15);
   EXPECT_TRUE(j["splits"]["test_light"]["object"]["psnr"].is_null());
   EXPECT_EQ(j["views"][0]["object"]["pixels"], 6);
   EXPECT_DOUBLE_EQ(j["views"][0]["object"]["ssim"].get<double>(), 0.6);
@@ -377,16 +398,17 @@ TEST(Report, MetricsJsonAndMarkdownParseBack) {
 
   const std::string md = io::read_file((out / "metrics.md").string());
   EXPECT_TRUE(contains(md, "- method: ours\n- steps: 3000\n")) << md;
-  EXPECT_TRUE(contains(md, "| split | views | PSNR [dB] | SSIM | MSE | object PSNR [dB] | object SSIM |")) << md;
-  EXPECT_TRUE(contains(md, "| test | 2 | 25.00 | 0.8000 | 5.500e-03 | 22.00 | 0.6000 | 1.250e-01 | 25.0 % | 50.0 % |"))
+  EXPECT_TRUE(contains(md, "| split | views | PSNR [dB] | SSIM | MSE | FLIP | object PSNR [dB] | object SSIM |")) << md;
+  EXPECT_TRUE(contains(
+      md, "| test | 2 | 25.00 | 0.8000 | 5.500e-03 | 0.2000 | 22.00 | 0.6000 | 1.250e-01 | 0.1500 | 25.0 % | 50.0 % |"))
       << md;
-  EXPECT_TRUE(contains(md, "| test_light | 1 | 25.00 | 0.8123 | 3.162e-03 |")) << md;
+  EXPECT_TRUE(contains(md, "| test_light | 1 | 25.00 | 0.8123 | 3.162e-03 | – |")) << md;
   EXPECT_TRUE(contains(md, "| **mean** | 3 | 25.00 | 0.8041 |")) << md;
   EXPECT_TRUE(contains(md, "## test\n\n![test contact sheet](contact_sheet_test.png)")) << md;
   EXPECT_TRUE(contains(md, "Shown: a (1 of 2 views)")) << md;
   EXPECT_TRUE(contains(md,
-                       "| a | 30.00 | 0.9000 | 1.000e-03 | 22.00 | 0.6000 | 1.250e-01 | 25.0 % |\n"
-                       "| b | 20.00 | 0.7000 | 1.000e-02 | – | – | – | – |"))
+                       "| a | 30.00 | 0.9000 | 1.000e-03 | 0.1000 | 22.00 | 0.6000 | 1.250e-01 | 0.1500 | 25.0 % |\n"
+                       "| b | 20.00 | 0.7000 | 1.000e-02 | 0.3000 | – | – | – | – | – |"))
       << md;
   EXPECT_TRUE(contains(md, "| c\\|d | 25.00 | 0.8123 |")) << md;  // '|' escaped in a table cell
   EXPECT_LT(md.find("## test\n"), md.find("## test_light\n"));
@@ -452,6 +474,9 @@ TEST(Report, MetricsFromTheDeviceAndAPerfectView) {
   EXPECT_DOUBLE_EQ(j["views"][0]["psnr"].get<double>(), views[1].metrics.psnr);
   EXPECT_DOUBLE_EQ(j["views"][0]["ssim"].get<double>(), views[1].metrics.ssim);
   EXPECT_DOUBLE_EQ(j["mean"]["mse"].get<double>(), views[1].metrics.mse);
+  EXPECT_EQ(views[0].metrics.flip, 0.0);
+  EXPECT_GT(views[1].metrics.flip, 0.0);
+  EXPECT_DOUBLE_EQ(j["views"][0]["flip"].get<double>(), views[1].metrics.flip);
 
   const Json both = Json::parse(report::metrics_json(views));
   EXPECT_TRUE(both["views"][0]["psnr"].is_null());

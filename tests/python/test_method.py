@@ -115,6 +115,7 @@ def test_cli_train_resume_and_render(dataset, tmp_path):
     view = metrics["views"][0]
     assert 0 < view["object"]["pixels"] <= 12 * 12 and math.isfinite(view["object"]["psnr"])
     assert view["object"]["rel_mse"] > 0 and 0 <= view["object"]["clipped"] <= 1
+    assert 0 <= view["flip"] <= 1 and 0 <= view["object"]["flip"] <= 1
     assert os.path.exists(os.path.join(report, "contact_sheet_test.png"))
     assert os.path.exists(os.path.join(report, "metrics.md"))
     r = run_python(["-m", "relit", "render", run, "--eye", "0", "-4", "1", "--resolution", "16", "--light", "1", "-3",

@@ -40,6 +40,7 @@ def test_write_report_computes_missing_metrics(device, tmp_path):
     for got, want in zip(report["views"], expected):
         assert got["psnr"] == pytest.approx(want["psnr"], rel=1e-12)
         assert got["ssim"] == pytest.approx(want["ssim"], rel=1e-12)
+        assert got["flip"] == pytest.approx(want["flip"], rel=1e-12) and 0 < got["flip"] < 1
     assert list(report["splits"]) == ["test", "test_light"]
     assert report["splits"]["test"]["psnr"] == pytest.approx((expected[0]["psnr"] + expected[1]["psnr"]) / 2)
     assert report["mean"]["n_views"] == 3
@@ -49,7 +50,9 @@ def test_write_report_computes_missing_metrics(device, tmp_path):
     assert last[0].startswith("PSNR ") and last[1].startswith("SSIM ")
     assert float(last[0].split()[1]) == pytest.approx(report["mean"]["psnr"], abs=1e-4)
     assert float(last[1].split()[1]) == pytest.approx(report["mean"]["ssim"], abs=1e-4)
-    assert "| test | 2 |" in (out / "metrics.md").read_text()
+    assert report["mean"]["flip"] == pytest.approx(sum(m["flip"] for m in expected) / 3)
+    assert "| test | 2 |" in (out / "metrics.md").read_text() and "| FLIP |" in (out / "metrics.md").read_text()
+    assert " FLIP " in lines.splitlines()[0]
     for split in ("test", "test_light"):
         assert (out / f"contact_sheet_{split}.png").exists()
     assert not (out / "test").exists()
@@ -65,6 +68,7 @@ def test_objects_with_given_metrics_and_predictions_on_disk(tmp_path):
                      "SSIM 0.8000  (mean over the 2 test views)\n")
     report = json.loads((tmp_path / "metrics.json").read_text())
     assert report["mean"]["mse"] == pytest.approx(5.5e-3)
+    assert report["mean"]["flip"] is None  # given metrics without 'flip': not computed
     png = np.asarray(Image.open(tmp_path / "test" / "a.png").convert("RGB"), np.float64) / 255
     assert png.shape == (4, 5, 3)
     assert np.abs(png - srgb(pred)).max() <= 0.5 / 255 + 1e-6
@@ -157,6 +161,7 @@ def test_cli_eval_compares_two_folders_of_images(tmp_path):
     for v in report["views"]:
         assert 10 < v["psnr"] < 80 and v["object"]["pixels"] > 0  # the EXRs' alpha gives the object
         assert 0 <= v["object"]["clipped"] <= 1 and v["object"]["rel_mse"] > 0
+        assert 0 < v["flip"] < 1 and 0 < v["object"]["flip"] < 1
     assert "object: PSNR" in r.stdout and (tmp_path / "report" / "contact_sheet_test.png").exists()
 
     same = run_python(["-m", "relit", "eval", "--predictions", str(tmp_path / "ref"), "--references", str(tmp_path / "ref"),

@@ -1,8 +1,8 @@
-// Evaluation reports (docs/design.md §6): per-view PSNR/SSIM of rendered test views against their references, their
-// means per split and overall, written as files a person reads and a script parses.
+// Evaluation reports (docs/design.md §6): per-view PSNR/SSIM/HDR-FLIP of rendered test views against their
+// references, their means per split and overall, written as files a person reads and a script parses.
 //
-//   dir/metrics.json               every view's psnr/ssim/mse, per-split means, the overall mean, `meta`
-//   dir/metrics.md                 a summary table and one table per split (PSNR 2 decimals, SSIM 4)
+//   dir/metrics.json               every view's psnr/ssim/mse/flip, per-split means, the overall mean, `meta`
+//   dir/metrics.md                 a summary table and one table per split (PSNR 2 decimals, SSIM and FLIP 4)
 //   dir/contact_sheet_<split>.png  up to 8 views of the split, one row each: prediction | reference | error
 //   dir/<split>/<name>.png|.exr    optionally, every prediction (sRGB preview, linear float)
 //
@@ -45,16 +45,17 @@ struct SplitSummary {
   std::string split;
   std::size_t n_views = 0;
   double psnr = 0, ssim = 0, mse = 0;  ///< PSNR: the mean of the per-view PSNRs in dB
+  double flip = 0;                     ///< mean HDR-FLIP over the views that have it (NaN when none has)
   /// The object metrics' means over the views that have them (an object mask with pixels), NaN when none has:
-  /// ObjectComparison's psnr, ssim, rel_mse, clipped and fraction.
-  double object_psnr = 0, object_ssim = 0, object_rel_mse = 0, object_clipped = 0, object_fraction = 0;
+  /// ObjectComparison's psnr, ssim, rel_mse, clipped, fraction and flip.
+  double object_psnr = 0, object_ssim = 0, object_rel_mse = 0, object_clipped = 0, object_fraction = 0, object_flip = 0;
 };
 
 /// Checks what the report relies on and throws InvalidArgument naming the view (split/name, index) and the
 /// problem: no views; an empty split or name, or one that is not a plain file name ('/', "..", control
 /// characters); the same name twice in a split; a zero size; images whose length is not width x height x 3;
 /// a NaN or infinite pixel (with its position); NaN metrics (or infinite mse/ssim) of the whole image (the object
-/// metrics may be NaN: no object pixels).
+/// metrics may be NaN: no object pixels; FLIP may be NaN: not computed, and is otherwise in [0, 1]).
 void validate(const std::vector<ViewResult>& views);
 
 /// The means of every split, in the order the splits first appear in `views`.
@@ -131,7 +132,8 @@ struct FolderComparison {
 FolderComparison compare_folders(const Device& device, const std::string& predictions, const std::string& references,
                                  const ProgressCallback& progress = {});
 
-/// What a program prints: one line per split, "<split>: PSNR 31.23 dB  SSIM 0.9512 (50 views)", then
+/// What a program prints: one line per split, "<split>: PSNR 31.23 dB  SSIM 0.9512  FLIP 0.0812 (50 views)" (FLIP
+/// and the object's metrics where the views have them), then
 /// exactly "PSNR <mean>" and "SSIM <mean>" over all views, 4 decimals each (scripts parse these two).
 /// Each line ends with '\n'. Throws InvalidArgument when `views` is empty.
 std::string format_summary_lines(const std::vector<ViewResult>& views);

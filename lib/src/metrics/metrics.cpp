@@ -1,5 +1,5 @@
 // PSNR, SSIM and the object metrics: launches of kernels/metrics.cl, per-row partial sums added on the host in
-// double, in row order.
+// double, in row order; HDR-FLIP from flip.cpp.
 #include <relit/cl/program.hpp>
 #include <relit/metrics.hpp>
 
@@ -80,6 +80,7 @@ ImageComparison compare(const Device& device, const std::vector<float>& predicti
   device.kernel("metrics.cl", "ssim_rows").args(width, height, channels, a, b, m, taps, ssim_sums).launch(ssim_rows, 1);
 
   const auto se = column_sums(se_rows, 2), ss = column_sums(ssim_sums, 3), obj = column_sums(object_sums, 3);
+  const FlipResult f = flip(device, prediction, reference, width, height, channels);
   const auto psnr = [](double mse) {
     return mse > 0 ? 10.0 * std::log10(1.0 / mse) : std::numeric_limits<double>::infinity();
   };
@@ -87,6 +88,7 @@ ImageComparison compare(const Device& device, const std::vector<float>& predicti
   result.mse = se[0] / double(n);
   result.psnr = psnr(result.mse);
   result.ssim = ss[0] / (double(ssim_rows) * (width - 2 * kRadius) * channels);
+  result.flip = f.mean;
   ObjectComparison& o = result.object;
   o.pixels = static_cast<std::uint64_t>(obj[1]);
   o.fraction = double(o.pixels) / double(pixels);
@@ -96,6 +98,10 @@ ImageComparison compare(const Device& device, const std::vector<float>& predicti
     o.rel_mse = obj[0] / (double(o.pixels) * channels);
     o.clipped = obj[2] / double(o.pixels);
     if (ss[2] > 0) o.ssim = ss[1] / (ss[2] * channels);
+    double flip_sum = 0;
+    for (std::size_t p = 0; p < pixels; ++p)
+      if ((*mask)[p]) flip_sum += f.error[p];
+    o.flip = flip_sum / double(o.pixels);
   }
   return result;
 }

@@ -114,19 +114,21 @@ OrderedJson means(const SplitSummary& s) {
           {"psnr", number(s.psnr)},
           {"ssim", number(s.ssim)},
           {"mse", number(s.mse)},
+          {"flip", number(s.flip)},
           {"object",
            {{"psnr", number(s.object_psnr)},
             {"ssim", number(s.object_ssim)},
             {"rel_mse", number(s.object_rel_mse)},
+            {"flip", number(s.object_flip)},
             {"clipped", number(s.object_clipped)},
             {"fraction", number(s.object_fraction)}}}};
 }
 
 OrderedJson view_object(const metrics::ImageComparison& m) {
-  return {{"pixels", m.object.pixels},          {"fraction", number(m.object.fraction)},
-          {"psnr", number(m.object.psnr)},      {"ssim", number(m.object.ssim)},
-          {"mse", number(m.object.mse)},        {"rel_mse", number(m.object.rel_mse)},
-          {"clipped", number(m.object.clipped)}};
+  return {{"pixels", m.object.pixels},     {"fraction", number(m.object.fraction)},
+          {"psnr", number(m.object.psnr)}, {"ssim", number(m.object.ssim)},
+          {"mse", number(m.object.mse)},   {"rel_mse", number(m.object.rel_mse)},
+          {"flip", number(m.object.flip)}, {"clipped", number(m.object.clipped)}};
 }
 
 // A Markdown table cell: '|' would end the cell, a line break the table.
@@ -166,27 +168,30 @@ std::vector<std::string> sheet_view_names(const std::vector<const ViewResult*>& 
 
 std::string sheet_file(const std::string& split) { return "contact_sheet_" + split + ".png"; }
 
-// The object metrics of a view, in SplitSummary's order of object_psnr ... object_fraction.
-std::array<double, 5> object_values(const ViewResult& v) {
+// The metrics a view may lack (NaN): FLIP (not computed) and the object's (no object pixels), in SplitSummary's
+// order of flip, object_psnr ... object_flip.
+constexpr std::size_t kOptional = 7;
+std::array<double, kOptional> optional_values(const ViewResult& v) {
   const auto& o = v.metrics.object;
-  return {o.psnr, o.ssim, o.rel_mse, o.clipped, o.pixels ? o.fraction : std::nan("")};
+  return {v.metrics.flip, o.psnr, o.ssim, o.rel_mse, o.clipped, o.pixels ? o.fraction : std::nan(""), o.flip};
 }
 
-std::array<double*, 5> object_fields(SplitSummary& s) {
-  return {&s.object_psnr, &s.object_ssim, &s.object_rel_mse, &s.object_clipped, &s.object_fraction};
+std::array<double*, kOptional> optional_fields(SplitSummary& s) {
+  return {&s.flip,           &s.object_psnr,     &s.object_ssim, &s.object_rel_mse,
+          &s.object_clipped, &s.object_fraction, &s.object_flip};
 }
 
-// Sums, and how many views have each object metric (NaN: the view has none).
+// Sums, and how many views have each optional metric (NaN: the view has none).
 struct Accumulator {
   SplitSummary sums;
-  std::array<std::size_t, 5> counts{};
+  std::array<std::size_t, kOptional> counts{};
   void add(const ViewResult& v) {
     ++sums.n_views;
     sums.psnr += v.metrics.psnr;
     sums.ssim += v.metrics.ssim;
     sums.mse += v.metrics.mse;
-    const auto values = object_values(v);
-    const auto fields = object_fields(sums);
+    const auto values = optional_values(v);
+    const auto fields = optional_fields(sums);
     for (std::size_t k = 0; k < values.size(); ++k)
       if (!std::isnan(values[k])) {
         *fields[k] += values[k];
@@ -199,7 +204,7 @@ struct Accumulator {
     s.psnr /= double(s.n_views);
     s.ssim /= double(s.n_views);
     s.mse /= double(s.n_views);
-    const auto fields = object_fields(s);
+    const auto fields = optional_fields(s);
     for (std::size_t k = 0; k < fields.size(); ++k)
       *fields[k] = counts[k] ? *fields[k] / double(counts[k]) : std::nan("");
     return s;
@@ -225,10 +230,10 @@ void validate(const std::vector<ViewResult>& views) {
       throw InvalidArgument("report: " + label(v, i) + ": another view of split '" + v.split + "' has the same name");
     check_images(v, i);
     const auto& m = v.metrics;
-    if (std::isnan(m.psnr) || !std::isfinite(m.ssim) || !std::isfinite(m.mse))
+    if (std::isnan(m.psnr) || !std::isfinite(m.ssim) || !std::isfinite(m.mse) || m.flip < 0 || m.flip > 1)
       throw InvalidArgument("report: " + label(v, i) + " has invalid metrics (psnr " + std::to_string(m.psnr) +
-                            ", ssim " + std::to_string(m.ssim) + ", mse " + std::to_string(m.mse) +
-                            "): compute them with metrics::compare");
+                            ", ssim " + std::to_string(m.ssim) + ", mse " + std::to_string(m.mse) + ", flip " +
+                            std::to_string(m.flip) + "): compute them with metrics::compare");
   }
 }
 
@@ -384,6 +389,7 @@ std::string metrics_json(const std::vector<ViewResult>& views, const ReportOptio
                           {"psnr", number(v.metrics.psnr)},
                           {"ssim", number(v.metrics.ssim)},
                           {"mse", number(v.metrics.mse)},
+                          {"flip", number(v.metrics.flip)},
                           {"object", view_object(v.metrics)}});
   return j.dump(2) + "\n";
 }
@@ -409,15 +415,16 @@ std::string metrics_markdown(const std::vector<ViewResult>& views, const ReportO
         "reference's "
         "or the prediction's alpha exceeds "
      << fixed(metrics::kObjectAlpha, 2)
-     << "; relMSE on the linear images, (p - r)² / (r² + 0.01); "
+     << "; relMSE on the linear images, (p - r)² / (r² + 0.01); FLIP: mean HDR-FLIP of the linear images "
+        "(0: no visible difference, 1: the largest); "
         "clipped: the share of the object's pixels whose reference clips in sRGB (docs/evaluation.md).\n\n"
-     << "| split | views | PSNR [dB] | SSIM | MSE | object PSNR [dB] | object SSIM | object relMSE | clipped | "
-        "object share |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+     << "| split | views | PSNR [dB] | SSIM | MSE | FLIP | object PSNR [dB] | object SSIM | object relMSE | "
+        "object FLIP | clipped | object share |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   const auto summary_row = [&](const SplitSummary& s, const std::string& name) {
     md << "| " << name << " | " << s.n_views << " | " << fixed(s.psnr, 2) << " | " << fixed(s.ssim, 4) << " | "
-       << scientific(s.mse) << " | " << maybe(s.object_psnr, 2) << " | " << maybe(s.object_ssim, 4) << " | "
-       << maybe_scientific(s.object_rel_mse) << " | " << percent(s.object_clipped) << " | "
-       << percent(s.object_fraction) << " |\n";
+       << scientific(s.mse) << " | " << maybe(s.flip, 4) << " | " << maybe(s.object_psnr, 2) << " | "
+       << maybe(s.object_ssim, 4) << " | " << maybe_scientific(s.object_rel_mse) << " | " << maybe(s.object_flip, 4)
+       << " | " << percent(s.object_clipped) << " | " << percent(s.object_fraction) << " |\n";
   };
   const auto summaries = summarize(views);
   for (const auto& s : summaries) summary_row(s, cell(s.split));
@@ -432,13 +439,14 @@ std::string metrics_markdown(const std::vector<ViewResult>& views, const ReportO
        << "; the bar under the sheet). Shown: ";
     for (std::size_t i = 0; i < shown.size(); ++i) md << (i ? ", " : "") << shown[i];
     md << " (" << shown.size() << " of " << of.size() << (of.size() == 1 ? " view).\n\n" : " views).\n\n")
-       << "| view | PSNR [dB] | SSIM | MSE | object PSNR [dB] | object SSIM | object relMSE | clipped "
-          "|\n|---|---:|---:|---:|---:|---:|---:|---:|\n";
+       << "| view | PSNR [dB] | SSIM | MSE | FLIP | object PSNR [dB] | object SSIM | object relMSE | object FLIP | "
+          "clipped |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for (const auto* v : of) {
       const auto& m = v->metrics;
       md << "| " << cell(v->name) << " | " << fixed(m.psnr, 2) << " | " << fixed(m.ssim, 4) << " | "
-         << scientific(m.mse) << " | " << maybe(m.object.psnr, 2) << " | " << maybe(m.object.ssim, 4) << " | "
-         << maybe_scientific(m.object.rel_mse) << " | " << percent(m.object.clipped) << " |\n";
+         << scientific(m.mse) << " | " << maybe(m.flip, 4) << " | " << maybe(m.object.psnr, 2) << " | "
+         << maybe(m.object.ssim, 4) << " | " << maybe_scientific(m.object.rel_mse) << " | " << maybe(m.object.flip, 4)
+         << " | " << percent(m.object.clipped) << " |\n";
     }
   }
   return md.str();
@@ -479,9 +487,13 @@ std::string format_summary_lines(const std::vector<ViewResult>& views) {
   std::ostringstream out;
   for (const auto& s : summarize(views)) {
     out << s.split << ": PSNR " << fixed(s.psnr, 2) << " dB  SSIM " << fixed(s.ssim, 4);
-    if (!std::isnan(s.object_psnr))
+    if (!std::isnan(s.flip)) out << "  FLIP " << fixed(s.flip, 4);
+    if (!std::isnan(s.object_psnr)) {
       out << "  | object: PSNR " << fixed(s.object_psnr, 2) << " dB  SSIM " << maybe(s.object_ssim, 4) << "  relMSE "
-          << scientific(s.object_rel_mse) << "  clipped " << percent(s.object_clipped);
+          << scientific(s.object_rel_mse);
+      if (!std::isnan(s.object_flip)) out << "  FLIP " << fixed(s.object_flip, 4);
+      out << "  clipped " << percent(s.object_clipped);
+    }
     out << " (" << s.n_views << (s.n_views == 1 ? " view)\n" : " views)\n");
   }
   // The two parsable lines: "PSNR <value>" first, then which views the mean is of.
