@@ -5,6 +5,7 @@
 #
 #   scripts/setup.sh            # packages + .venv in the repository root
 #   RELIT_VENV=/path scripts/setup.sh
+#   scripts/setup.sh --peers    # also .venv-peers: PyTorch from PyPI for bench/peers (about 5 GB; not for tests)
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -15,6 +16,7 @@ debian_packages=(
   build-essential cmake ninja-build pkg-config git clang-format  # clang-format: the format test
   ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers clinfo   # OpenCL ICD loader, C and C++ headers
   pocl-opencl-icd                                                 # the portable CPU OpenCL driver
+  oclgrind                                                        # OpenCL simulator: races, bounds, barriers
   libclblast-dev                                                  # bench_mlp's GEMM peer (RELIT_WITH_CLBLAST)
   libopenimageio-dev openimageio-tools                            # EXR/PNG/HDR images
   libeigen3-dev libopenblas-dev                                   # host math, references, BLAS peer
@@ -58,3 +60,15 @@ then
   "$venv/bin/python" -m pip install -q --disable-pip-version-check "${python_tools[@]}"
 fi
 echo "setup: ok (python: $venv/bin/python)"
+
+# The benchmark peers (bench/peers/compare.py): PyTorch 2.x from PyPI, eager and torch.compile (its inductor
+# compiles C++ with the system's g++). A venv of its own, so that the test venv stays small.
+if [ "${1:-}" = "--peers" ]; then
+  peers="${RELIT_PEERS_VENV:-$root/.venv-peers}"
+  [ -x "$peers/bin/python" ] || python3 -m venv "$peers"
+  if ! "$peers/bin/python" -c "import torch, numpy" 2>/dev/null; then
+    echo "setup: installing PyTorch into $peers"
+    "$peers/bin/python" -m pip install -q --disable-pip-version-check torch numpy
+  fi
+  echo "setup: peers ok (python: $peers/bin/python, torch $("$peers/bin/python" -c 'import torch; print(torch.__version__)'))"
+fi

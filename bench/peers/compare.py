@@ -2,10 +2,11 @@
 """relit against a PyTorch implementation of the same "Ours" models, on the same machine in one session.
 
 Runs `relit bench --suite e2e` (one training iteration of the fast and paper presets, one 128x128 frame),
-bench/peers/torch_ours.py for both presets, and bench_mlp (the fused MLPs against a CLBlast GEMM chain and an
+bench/peers/torch_ours.py for both presets, eager and with torch.compile, and bench_mlp (the fused MLPs against a CLBlast GEMM chain and an
 Eigen/OpenMP chain on the same batch), then writes OUT.json (every number) and OUT.md (the ratios).
 
-    python3 bench/peers/compare.py --relit build/apps/relit --out peers     # PyTorch: apt-get install python3-torch
+    scripts/setup.sh --peers                      # PyTorch 2.x from PyPI into .venv-peers
+    python3 bench/peers/compare.py --relit build/apps/relit --out peers
 """
 import argparse
 import json
@@ -14,40 +15,64 @@ import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+
+
+def write_atomic(path, text):
+    """Writes `text` to a temporary file beside `path`, flushed to disk, then renames it over `path`."""
+    tmp = "%s.tmp%d" % (path, os.getpid())
+    with open(tmp, "w") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--relit", default="build/apps/relit", help="the relit program")
-    ap.add_argument("--python", default="/usr/bin/python3", help="a Python with torch (Debian: python3-torch)")
+    ap.add_argument("--python", default=os.path.join(ROOT, ".venv-peers", "bin", "python"),
+                    help="a Python with torch 2.x (scripts/setup.sh --peers makes .venv-peers)")
+    ap.add_argument("--no-compile", action="store_true", help="skip the torch.compile peer")
     ap.add_argument("--out", default="peers", help="writes OUT.json and OUT.md")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--bench-mlp", default="build/bench/bench_mlp", help="the bench_mlp program ('' to skip)")
     args = ap.parse_args()
     if subprocess.run([args.python, "-c", "import torch"], capture_output=True).returncode != 0:
-        sys.exit("%s cannot import torch; install it (Debian: apt-get install python3-torch) or pass --python" %
-                 args.python)
+        sys.exit("%s cannot import torch; run scripts/setup.sh --peers or pass --python" % args.python)
     relit_json = args.out + ".relit.json"
     subprocess.run([args.relit, "bench", "--suite", "e2e", "--repeats", str(args.repeats), "--json", relit_json],
                    check=True)
     relit = {r["name"]: r for r in json.load(open(relit_json))["devices"][0]["results"]}
-    peers = {}
-    for preset in ("fast", "paper"):
-        path = "%s.torch_%s.json" % (args.out, preset)
-        subprocess.run([args.python, os.path.join(HERE, "torch_ours.py"), "--preset", preset, "--steps",
-                        str(args.repeats), "--json", path], check=True, stdout=subprocess.DEVNULL)
-        peers[preset] = json.load(open(path))
+    modes = ["eager"] + ([] if args.no_compile else ["compile"])
+    peers = {mode: {} for mode in modes}
+    for mode in modes:
+        for preset in ("fast", "paper"):
+            path = "%s.torch_%s_%s.json" % (args.out, mode, preset)
+            cmd = [args.python, os.path.join(HERE, "torch_ours.py"), "--preset", preset, "--steps", str(args.repeats),
+                   "--json", path] + (["--compile"] if mode == "compile" else [])
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+            peers[mode][preset] = json.load(open(path))
     rows = []
     for preset in ("fast", "paper"):
         r = relit["train_step_" + preset]["median_s"]
-        p = peers[preset]["train_step_s"]["median"]
-        rows.append(("training iteration, `%s`" % preset, r, p, p / r))
+        rows.append(["training iteration, `%s`" % preset, r] +
+                    [peers[m][preset]["train_step_s"]["median"] for m in modes])
     r = relit["relit_frame_fast"]["median_s"]
-    p = peers["fast"]["frame_128_s"]
-    rows.append(("128x128 frame, `fast`", r, p, p / r))
-    lines = ["| | relit [s] | PyTorch %s [s] | speed-up |" % peers["fast"]["torch_version"], "|---|---:|---:|---:|"]
-    lines += ["| %s | %.3f | %.3f | %.1fx |" % row for row in rows]
-    doc = {"relit": relit, "pytorch": peers, "ratios": {row[0]: row[3] for row in rows}}
+    rows.append(["128x128 frame, `fast`", r] + [peers[m]["fast"]["frame_128_s"] for m in modes])
+    version = peers["eager"]["fast"]["torch_version"]
+    head = "| | relit [s] | PyTorch %s eager [s] | speed-up |" % version
+    rule = "|---|---:|---:|---:|"
+    if "compile" in modes:
+        head += " torch.compile [s] | speed-up |"
+        rule += "---:|---:|"
+    lines = [head, rule]
+    for row in rows:
+        cells = ["%.3f | %.1fx" % (p, p / row[1]) for p in row[2:]]
+        lines.append("| %s | %.3f | %s |" % (row[0], row[1], " | ".join(cells)))
+    compile_s = {m: {p: peers[m][p]["compile_s"] for p in peers[m]} for m in modes}
+    doc = {"relit": relit, "pytorch": peers, "compile_s": compile_s,
+           "ratios": {row[0]: {m: row[2 + i] / row[1] for i, m in enumerate(modes)} for row in rows}}
     if args.bench_mlp:
         mlp_json = args.out + ".bench_mlp.json"
         subprocess.run([args.bench_mlp, "--json", mlp_json], check=True, stdout=subprocess.DEVNULL)
@@ -61,10 +86,8 @@ def main():
                                                                    c.get("train", float("nan")),
                                                                    e.get("forward", float("nan")),
                                                                    e.get("train", float("nan"))))
-    with open(args.out + ".json", "w") as f:
-        json.dump(doc, f, indent=2)
-    with open(args.out + ".md", "w") as f:
-        f.write("\n".join(lines) + "\n")
+    write_atomic(args.out + ".json", json.dumps(doc, indent=2) + "\n")
+    write_atomic(args.out + ".md", "\n".join(lines) + "\n")
     print("\n".join(lines))
 
 

@@ -10,7 +10,10 @@ visibility targets by a 64-step march through a cached density grid for a quarte
 loss, backward, Adam. It also renders one 128x128 frame (inference, 1024-ray tiles).
 
     python3 bench/peers/torch_ours.py --preset fast --json torch_fast.json
+    python3 bench/peers/torch_ours.py --preset fast --compile --json torch_fast_compiled.json
 
+--compile runs the renderer, the visibility net and the march through torch.compile (TorchInductor's C++/OpenMP
+code on a CPU); the first iterations compile them, and that time is reported apart (compile_s), not timed.
 Only the time is measured; the images are not compared (the random initialisations differ).
 """
 import argparse
@@ -257,6 +260,7 @@ def main():
     ap.add_argument("--steps", type=int, default=5, help="timed training iterations (after one warm-up)")
     ap.add_argument("--threads", type=int, default=os.cpu_count())
     ap.add_argument("--json", default=None)
+    ap.add_argument("--compile", action="store_true", help="torch.compile the forward passes (inductor)")
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     torch.manual_seed(0)
@@ -278,6 +282,11 @@ def main():
             return sig.view(1, 1, res, res, res)
 
     grid = refresh_grid()
+    march_fn = march
+    if args.compile:
+        model.render = torch.compile(model.render)
+        model.visibility = torch.compile(model.visibility)
+        march_fn = torch.compile(march)
 
     def step():
         o, d, lp, li = random_rays(batch)
@@ -290,13 +299,17 @@ def main():
         opt.step()
         m = int(batch * frac) * model.spr
         xs, ws, us = x.view(-1, 3)[:m], wl[:m], u[:m]
-        target = march(grid, xs, ws, steps_march)
+        target = march_fn(grid, xs, ws, steps_march)
         vloss = ((model.visibility(us, ws) - target) ** 2).mean()
         vopt.zero_grad(set_to_none=True)
         vloss.backward()
         vopt.step()
 
-    step()  # warm-up
+    t0 = time.perf_counter()
+    step()  # warm-up; with --compile, two steps compile the forward and backward graphs
+    if args.compile:
+        step()
+    compile_s = time.perf_counter() - t0
     times = []
     for _ in range(args.steps):
         t0 = time.perf_counter()
@@ -305,16 +318,22 @@ def main():
     t0 = time.perf_counter()
     refresh_grid()
     refresh = time.perf_counter() - t0
-    # One 128x128 frame, 1024-ray tiles, no gradients.
-    with torch.no_grad():
-        t0 = time.perf_counter()
-        o, d, lp, li = random_rays(128 * 128)
-        dirs = F.normalize(torch.randn(model.K, 3), dim=-1)
-        basis = sh_basis(dirs, model.lmax)
-        for i in range(0, o.shape[0], 1024):
-            model.render(o[i:i + 1024], d[i:i + 1024], lp[i:i + 1024], li[i:i + 1024], dirs, basis)
-        frame = time.perf_counter() - t0
-    out = {"peer": "pytorch", "torch_version": torch.__version__, "threads": args.threads, "preset": args.preset,
+    # One 128x128 frame, 1024-ray tiles, no gradients (compiled: a first frame compiles the no-grad graph).
+    def render_frame():
+        with torch.no_grad():
+            t0 = time.perf_counter()
+            o, d, lp, li = random_rays(128 * 128)
+            dirs = F.normalize(torch.randn(model.K, 3), dim=-1)
+            basis = sh_basis(dirs, model.lmax)
+            for i in range(0, o.shape[0], 1024):
+                model.render(o[i:i + 1024], d[i:i + 1024], lp[i:i + 1024], li[i:i + 1024], dirs, basis)
+            return time.perf_counter() - t0
+
+    if args.compile:
+        render_frame()
+    frame = render_frame()
+    out = {"peer": "pytorch-compile" if args.compile else "pytorch", "torch_version": torch.__version__,
+           "compiled": args.compile, "compile_s": compile_s, "threads": args.threads, "preset": args.preset,
            "batch_rays": batch, "train_step_s": {"median": statistics.median(times), "min": min(times),
                                                  "max": max(times), "repeats": len(times)},
            "grid_refresh_s": refresh, "frame_128_s": frame}
