@@ -26,7 +26,9 @@
 
 // sin(pi * y), cos(pi * y) for y = x * 2^k, with exact reduction of y to [-1, 1].
 inline void freq_anchor(float16 x, int k, float16* s, float16* c) {
-  const float16 y = ldexp(x, k);
+  // x * 2^k is exact (k < 24; an encoding's inputs are far from overflow), as ldexp(x, k) would be; but
+  // Oclgrind 21.10 gets ldexp(float16, int) wrong (sines off by up to 2 in tests/cpp/test_encodings.cpp).
+  const float16 y = x * (float)(1u << k);
   const float16 r = y - 2.0f * rint(0.5f * y);  // exact: y and 2*rint(y/2) are floats of the same binade or less
   *s = sinpi(r);
   *c = cospi(r);

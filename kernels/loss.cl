@@ -11,6 +11,7 @@
 //   LOSS 3  SrgbL2         (s(p) - s(t))^2,  s = the sRGB transfer curve of linear radiance, unclamped above 1
 //                          and odd below 0: s(x) = 12.92 x for |x| <= 0.0031308, else sign(x) (1.055 |x|^(1/2.4) -
 //                          0.055)
+#include "common.clh"
 #include "layout.clh"
 
 #ifndef LOSS
@@ -71,10 +72,7 @@ __kernel void loss_forward_backward(const uint batch, const uint cols, const flo
     sum = fma(value, mask, sum);
     gradient[i] = grad * mask * (scale * inv_count);
   }
-  const float8 s8 = sum.lo + sum.hi;
-  const float4 s4 = s8.lo + s8.hi;
-  const float2 s2 = s4.lo + s4.hi;
-  partials[tile] = (s2.x + s2.y) * inv_count;
+  partials[tile] = relit_sum16(sum) * inv_count;
 }
 
 // out[0] = sum of n values, added in a fixed order (one work-item; the inputs are one per tile, few).

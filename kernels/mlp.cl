@@ -23,6 +23,7 @@
 // The output layer maps WIDTH to N_OUT; output column j gets activation OUT_ACTS[j].
 //
 // Everything is specialised with -D (set by FullyFusedMLP); the defaults make the file build alone.
+#include "common.clh"
 #include "layout.clh"
 
 #ifndef N_IN
@@ -396,12 +397,7 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
 #endif
 
 // Sum of the 16 lanes, in a fixed order (pairwise halves).
-inline float sum16(float16 v) {
-  const float8 s8 = v.lo + v.hi;
-  const float4 s4 = s8.lo + s8.hi;
-  const float2 s2 = s4.lo + s4.hi;
-  return s2.x + s2.y;
-}
+#define sum16 relit_sum16
 
 // The accumulators: DW_VEC samples (float8: one 256-bit register, float16: one 512-bit register).
 #if DW_VEC == 16
@@ -411,11 +407,7 @@ typedef float16 dw_vec;
 #else
 typedef float8 dw_vec;
 #define DW_LOAD(p) vload8(0, (p))
-inline float dw_sum(float8 v) {
-  const float4 s4 = v.lo + v.hi;
-  const float2 s2 = s4.lo + s4.hi;
-  return s2.x + s2.y;
-}
+#define dw_sum relit_sum8
 #endif
 
 __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len, const uint n_chunks, const uint sub,

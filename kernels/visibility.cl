@@ -23,8 +23,10 @@ inline float16 gather16(__global const float* g, int16 i) {
 inline void grid_axis16(float16 p, int n, int16* lo, int16* hi, float16* f) {
   const float nf = (float)n;
   const float16 u = clamp(fma(p + 1.0f, 0.5f * nf, -0.5f), 0.0f, nf - 1.0f);
-  *lo = min(convert_int16(floor(u)), n - 1);
-  *hi = min(*lo + 1, n - 1);
+  // The bound as a vector, not min(int16, int): Oclgrind 21.10 fills lanes 4-15 of that overload with garbage.
+  const int16 last = (int16)(n - 1);
+  *lo = min(convert_int16(floor(u)), last);
+  *hi = min(*lo + 1, last);
   *f = u - convert_float16(*lo);
 }
 

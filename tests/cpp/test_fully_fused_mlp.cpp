@@ -122,7 +122,10 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
     std::vector<double> want_dp;
   };
   std::vector<BatchCase> batches;
-  for (std::uint32_t batch : {1000u, 100u, 96u, 33u, 1u}) {
+  // On Oclgrind (test::tiny_sizes()) the small batches only: a partial tile and a single sample.
+  const std::vector<std::uint32_t> batch_sizes =
+      test::tiny_sizes() ? std::vector<std::uint32_t>{33u, 1u} : std::vector<std::uint32_t>{1000u, 100u, 96u, 33u, 1u};
+  for (std::uint32_t batch : batch_sizes) {
     BatchCase b{batch, batch < 1000 ? 16u : 0u, random_vector(std::size_t(batch) * c.n_in, batch + 1), {}, {}, {}, {}};
     b.dyh = random_vector(std::size_t(batch + b.garbage_rows) * c.n_out, batch + 2);
     for (std::size_t i = std::size_t(batch) * c.n_out; i < b.dyh.size(); ++i) b.dyh[i] = 1e3f;
@@ -209,7 +212,7 @@ TEST(FullyFusedMLP, AccumulateAddsToGradients) {
 
 TEST(FullyFusedMLP, BitForBitDeterministic) {
   Small s(Json{{"n_neurons", 64}}, 32, 4);
-  const std::uint32_t batch = 2000;  // several weight-gradient chunks
+  const std::uint32_t batch = test::tiny_sizes() ? 300 : 2000;  // several weight-gradient chunks
   Buffer<float> pbuf(s.device, s.params);
   BatchMatrix x(s.device, batch, 32), dy(s.device, batch, 4);
   x.upload_row_major(random_vector(batch * 32, 1));

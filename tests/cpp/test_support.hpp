@@ -27,6 +27,19 @@ inline std::vector<Device> devices_under_test() {
 /// The first device under test.
 inline Device test_device() { return devices_under_test().front(); }
 
+/// True when the kernel tests run at their smallest sizes: on Oclgrind, the OpenCL simulator that checks every
+/// memory access and barrier (tests/check_oclgrind.cmake; thousands of times slower than a CPU device), or
+/// when RELIT_TEST_TINY is set. Tests that have large cases skip those then, and keep the small ones.
+inline bool tiny_sizes() {
+  static const bool tiny = [] {
+    if (std::getenv("RELIT_TEST_TINY")) return true;
+    for (const Device& d : devices_under_test())
+      if (d.info().platform_name.find("Oclgrind") != std::string::npos) return true;
+    return false;
+  }();
+  return tiny;
+}
+
 /// The method tests' small smooth networks (frequency encodings, no hash grid), so that finite differences
 /// are meaningful.
 inline Json tiny_mlp() { return {{"type", "FullyFusedMLP"}, {"n_neurons", 16}, {"n_hidden_layers", 1}}; }
