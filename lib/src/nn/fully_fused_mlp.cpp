@@ -137,20 +137,21 @@ FullyFusedMLP::Blocking FullyFusedMLP::blocking(const Device& device) const {
 
 FullyFusedMLP::KernelChoice FullyFusedMLP::choice_locked(const Device& device) const {
   KernelChoice c = default_kernels(device.info());
-  const Variant row_variant = device_default(device.info()).variant;
+  const KernelChoice row = device_default(device.info());
   auto force = [&](Variant v, const std::string& source) {
-    if (v != row_variant) c.tuned = false;
+    if (v != row.variant) c.tuned = false;
     c.variant = v;
     c.source = source;
   };
+  // Forced parameters are tuned when they are the device row's own.
   if (m_blocking) {
     c.blocking = *m_blocking;
     force(Variant::Simd, "set_blocking()");
-    c.tuned = false;
+    c.tuned = row.tuned && row.variant == Variant::Simd && c.blocking == row.blocking;
   } else if (m_workgroup) {
     c.workgroup = *m_workgroup;
     force(Variant::WorkGroup, "set_workgroup()");
-    c.tuned = false;
+    c.tuned = row.tuned && row.variant == Variant::WorkGroup && c.workgroup == row.workgroup;
   } else if (c.source != "RELIT_MLP_VARIANT" && m_variant_config != "auto") {
     force(m_variant_config == "simd" ? Variant::Simd : Variant::WorkGroup, "kernel_variant");
   }
