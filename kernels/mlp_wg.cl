@@ -167,8 +167,10 @@ inline void wg_zero(__private float* acc) {
 //
 // One flat loop of passes (layer, chunk of WIDTH outputs): a pass that does not apply (an output chunk past
 // N_OUT, a layer without skip's x segment) runs its product over zero columns, so that every work-item runs
-// the same barriers. (Nested loops around barriers whose bounds change per pass, and loops counting down,
-// gave wrong results and writes out of bounds under PoCL 3.1; this form runs correctly there.)
+// the same barriers. (Earlier forms of these kernels, with loops around barriers nested in a loop over the
+// layers whose trip counts changed from layer to layer, ran wrongly under PoCL 3.1 -- dL/dx changing from run
+// to run, writes past the end of dz -- although every work-item took the same path; the flat form runs
+// correctly there. The cause was not isolated.)
 // ---------------------------------------------------------------------------------------------------------
 __kernel __attribute__((reqd_work_group_size(WG_SIZE, 1, 1))) void mlp_wg_forward(
     const uint n_valid, const uint padded, __global const float* restrict params, const uint param_offset,
