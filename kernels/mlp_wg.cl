@@ -270,7 +270,10 @@ __kernel __attribute__((reqd_work_group_size(WG_SIZE, 1, 1))) void mlp_wg_backwa
         if (dx_step) {
           if (g < n_valid) {
             __global float* o = dx + TILED_AT(N_IN, g, oc + j);
-            *o = first ? v : *o + v;
+            if (first)  // no read of dx before its first write
+              *o = v;
+            else
+              *o += v;
           }
         } else {
           if (HIDDEN_ACT == ACT_RELU && !(g < n_valid && at[(size_t)j * padded + g] > 0.0f)) v = 0.0f;
