@@ -60,8 +60,8 @@ constexpr WorkGroupParams kWgIntel{64, 128, 4, 4, 16, 32, 4, 16, 2048};
 constexpr WorkGroupParams kWgOther{64, 64, 4, 4, 16, 32, 4, 16, 2048};
 
 const Row kTable[] = {
-    // CPUs: the SIMD kernels, measured (PoCL on AMD EPYC Zen 4/5 and Intel Xeon; docs/networks.md). Their
-    // work-group parameters are only used when the work-group variant is forced.
+    // CPUs: the SIMD kernels, measured (PoCL on 2-core AMD EPYC machines with AVX2 and with AVX-512, Zen 5;
+    // docs/networks.md). Their work-group parameters are only used when the work-group variant is forced.
     {"AVX-512 CPU", "cpu", "", 16, Variant::Simd, kAvx512, kWgOther, true},
     {"CPU", "cpu", "", 0, Variant::Simd, kAvx2, kWgOther, true},
     {"NVIDIA GPU", "gpu", "nvidia", 0, Variant::WorkGroup, kAvx2, kWgNvidia, false},
