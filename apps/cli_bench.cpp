@@ -50,9 +50,10 @@ struct BenchOptions {
   std::vector<std::string> compare;
   std::uint32_t repeats = 5;
   bool quick = false;
-  std::string inject_error;  // a case whose result is corrupted before verification (tests the failure path)
-  std::string filter;        // run only the cases whose name contains this
-  double peak_seconds = 0;   // length of one peak launch; 0: 0.25 s (0.05 s with --quick)
+  std::string inject_error;          // a case whose result is corrupted before verification (tests the failure path)
+  std::string filter;                // run only the cases whose name contains this
+  std::string mlp_variant = "auto";  // the MLP kernels: auto (the device's choice), simd, workgroup or all
+  double peak_seconds = 0;           // length of one peak launch; 0: 0.25 s (0.05 s with --quick)
 };
 
 // One benchmark case. run() does one unit of work and waits for the device; verify() checks the results of the
@@ -65,10 +66,12 @@ struct Case {
   std::function<void()> run;
   std::function<double()> verify;
   std::function<void()> corrupt;  // makes the last result wrong (--inject-error)
+  std::function<Json()> kernels;  // which kernels ran (after run()), for the report; may be empty
 };
 
 struct Result {
   std::string name, family, unit, status = "ok", error;
+  Json kernels;
   double worst = 0, first_call = 0, warmup = 0, median = 0, min = 0, max = 0, flops = 0, work = 0;
   std::uint32_t repeats = 0;
 };
@@ -84,6 +87,7 @@ Result measure(const Case& c, const BenchOptions& o) {
     auto t0 = Clock::now();
     c.run();  // kernel builds (unless cached) and first launch
     r.first_call = seconds(t0);
+    if (c.kernels) r.kernels = c.kernels();
     if (o.inject_error == c.name && c.corrupt) c.corrupt();
     r.worst = c.verify();
     if (!(r.worst <= 1.0)) {
@@ -167,14 +171,29 @@ struct MlpSpec {
   std::uint32_t n_in, width, hidden, n_out, skip;
 };
 
-void add_mlp(std::vector<Case>& cases, const Device& device, bool quick) {
+// `variant`: "auto" (the device's choice; the cases keep their plain names), "simd" or "workgroup" (that
+// variant with the device's parameters for it; with `suffix`, the cases are named mlp_w64_forward_simd /
+// _wg).
+void add_mlp(std::vector<Case>& cases, const Device& device, bool quick, const std::string& variant, bool suffix) {
   const std::uint32_t batch = quick ? 2048 : 76800, check_rows = 128;
+  const std::string tag = !suffix ? "" : variant == "simd" ? "_simd" : "_wg";
   for (const MlpSpec& spec :
        {MlpSpec{"w64", 32, 64, 3, 16, 0}, MlpSpec{"w128", 32, 128, 4, 16, 0}, MlpSpec{"w256", 63, 256, 8, 16, 4}}) {
     Json cfg = {{"type", "FullyFusedMLP"}, {"n_neurons", spec.width}, {"n_hidden_layers", spec.hidden}};
     if (spec.skip) cfg["skip_layers"] = {spec.skip};
     std::shared_ptr<nn::Network> net = nn::create_network(cfg, spec.n_in, spec.n_out);
-    const auto* mlp = dynamic_cast<const nn::FullyFusedMLP*>(net.get());
+    auto* mlp = dynamic_cast<nn::FullyFusedMLP*>(net.get());
+    const auto row = nn::FullyFusedMLP::device_default(device.info());
+    if (variant == "simd") mlp->set_blocking(row.blocking);
+    if (variant == "workgroup") mlp->set_workgroup(row.workgroup);
+    auto kernels = [net, device] {
+      const auto c = dynamic_cast<const nn::FullyFusedMLP&>(*net).kernel_choice(device);
+      const bool simd = c.variant == nn::FullyFusedMLP::Variant::Simd;
+      return Json{{"variant", nn::FullyFusedMLP::variant_name(c.variant)},
+                  {"parameters", simd ? c.blocking.str() : c.workgroup.str()},
+                  {"source", c.source},
+                  {"tuned", c.tuned}};
+    };
     std::vector<float> host_params(net->n_params());
     net->initialize_params(host_params.data(), 7);
     auto params = std::make_shared<Buffer<float>>(device, host_params);
@@ -194,7 +213,7 @@ void add_mlp(std::vector<Case>& cases, const Device& device, bool quick) {
     flops *= batch;
 
     Case f;
-    f.name = "mlp_" + spec.name + "_forward";
+    f.name = "mlp_" + spec.name + "_forward" + tag;
     f.family = "mlp";
     f.flops = flops;
     f.work = batch;
@@ -213,6 +232,7 @@ void add_mlp(std::vector<Case>& cases, const Device& device, bool quick) {
       return worst_ratio(got, w, 1e-4);
     };
     f.corrupt = [=] { y->data().fill(0.5f); };
+    f.kernels = kernels;
     cases.push_back(f);
 
     // Training step: forward with saved activations, dL/dinput and dL/dweights. Verified on a 256-sample batch
@@ -220,7 +240,7 @@ void add_mlp(std::vector<Case>& cases, const Device& device, bool quick) {
     // nets a pre-activation within float rounding of 0 takes the other side of the ReLU in the double
     // reference now and then (one sample's whole term moves), which says nothing about the kernels.
     Case t;
-    t.name = "mlp_" + spec.name + "_train";
+    t.name = "mlp_" + spec.name + "_train" + tag;
     t.family = "mlp";
     t.flops = 3 * flops;
     t.work = batch;
@@ -250,6 +270,7 @@ void add_mlp(std::vector<Case>& cases, const Device& device, bool quick) {
       return worst_ratio(grads->read(), want, 1e-3);
     };
     t.corrupt = [=] { grads->fill(1.0f); };
+    t.kernels = kernels;
     cases.push_back(t);
   }
 }
@@ -511,6 +532,7 @@ Json result_json(const Result& r, double peak) {
     j["error"] = r.error;
     return j;
   }
+  if (!r.kernels.is_null()) j["kernels"] = r.kernels;
   j["verify_worst_over_tolerance"] = r.worst;
   j["first_call_s"] = r.first_call;
   j["compile_s"] = std::max(0.0, r.first_call - r.median);
@@ -613,7 +635,12 @@ int run_bench(const BenchOptions& o) {
     const auto t_setup = Clock::now();
     if (o.suite != "e2e") {
       add_peak(cases, device, o);
-      add_mlp(cases, device, o.quick);
+      if (o.mlp_variant == "all") {
+        add_mlp(cases, device, o.quick, "simd", true);
+        add_mlp(cases, device, o.quick, "workgroup", true);
+      } else {
+        add_mlp(cases, device, o.quick, o.mlp_variant, false);
+      }
       add_hashgrid(cases, device, o.quick);
       add_renderer(cases, device, o.quick);
       add_adam(cases, device, o.quick);
@@ -648,6 +675,12 @@ int run_bench(const BenchOptions& o) {
       std::fprintf(stderr, "[relit] bench %s: %s\n", c.name.c_str(), r.status.c_str());
     }
     print_table(info.description(), rows);
+    for (const Json& j : rows)
+      if (j.contains("kernels"))
+        std::printf(
+            "  %-28s MLP kernels: %s %s (%s%s)\n", j["name"].get<std::string>().c_str(),
+            j["kernels"]["variant"].get<std::string>().c_str(), j["kernels"]["parameters"].get<std::string>().c_str(),
+            j["kernels"]["source"].get<std::string>().c_str(), j["kernels"]["tuned"].get<bool>() ? "" : ", untuned");
     std::printf("  kernel builds and first launches: %.2f s (setup %.2f s); measured peak %.1f GFLOP/s\n", compile,
                 setup_s, peak);
     doc["devices"].push_back({{"device", info.description()},
@@ -691,6 +724,11 @@ void add_bench_command(CLI::App& app) {
                   "length of one launch of the peak calibration (default 0.25 s, 0.05 s with --quick); a "
                   "longer one checks that the default is within noise of the sustained rate")
       ->check(CLI::Range(0.001, 600.0));
+  cmd->add_option("--mlp-variant", o->mlp_variant,
+                  "MLP kernels: auto (the device's choice), simd, workgroup, or all (each MLP case with both "
+                  "variants, named ..._simd and ..._wg)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "simd", "workgroup", "all"}));
   cmd->add_flag("--quick", o->quick, "small sizes: checks that everything runs and verifies (seconds)");
   cmd->add_option("--compare", o->compare,
                   "print the ratios between two result files A B (A / B of the median "

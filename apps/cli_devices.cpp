@@ -3,6 +3,7 @@
 
 #include <relit/cl/device.hpp>
 #include <relit/error.hpp>
+#include <relit/nn/fully_fused_mlp.hpp>
 #include <relit/version.hpp>
 
 #include <nlohmann/json.hpp>
@@ -63,6 +64,10 @@ int run_devices(const Options& o) {
       failed += !c.ok;
     }
     all_ok = all_ok && failed == 0;
+    // The MLP kernels a network with kernel_variant "auto" runs here (the work-group tile is lowered per
+    // network where its activations would not fit the device's local memory).
+    const nn::FullyFusedMLP::KernelChoice mlp = nn::FullyFusedMLP::default_kernels(i);
+    const bool simd = mlp.variant == nn::FullyFusedMLP::Variant::Simd;
     if (o.json) {
       nlohmann::json d = {{"index", i.index},
                           {"platform_index", i.platform_index},
@@ -83,7 +88,12 @@ int run_devices(const Options& o) {
                           {"local_memory_is_global", i.local_memory_is_global},
                           {"max_work_group_size", i.max_work_group_size},
                           {"fp64", i.fp64},
-                          {"extensions", i.extensions}};
+                          {"extensions", i.extensions},
+                          {"mlp_kernels",
+                           {{"variant", nn::FullyFusedMLP::variant_name(mlp.variant)},
+                            {"parameters", simd ? mlp.blocking.str() : mlp.workgroup.str()},
+                            {"source", mlp.source},
+                            {"tuned", mlp.tuned}}}};
       if (o.check) {
         d["kernels"] = nlohmann::json::array();
         for (const auto& c : checks)
@@ -105,6 +115,7 @@ int run_devices(const Options& o) {
     row("work-groups", "up to " + std::to_string(i.max_work_group_size) + " items; preferred float vector width " +
                            std::to_string(i.preferred_vector_width_float));
     row("fp64", i.fp64 ? "yes" : "no");
+    row("MLP kernels", mlp.str());
     row("extensions", wrap(i.extensions, 20, 100));
     if (o.check) {
       std::ostringstream s;

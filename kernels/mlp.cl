@@ -17,42 +17,12 @@
 //   per k: FWD_T float16 loads, FWD_R broadcasts, FWD_R * FWD_T FMAs (independent accumulator chains).
 //   AVX2 and GPUs: FWD_T = 1, FWD_R = 4; AVX-512 (32 registers): FWD_T = 4, FWD_R = 6 (FullyFusedMLP::Blocking).
 //
-// Parameters (one layer after the other, layer l = 0 .. N_HIDDEN): a row-major [n_out_l][n_in_l + BIAS]
-// matrix whose last column is the bias when BIAS = 1. n_in_0 = N_IN; hidden layer l >= 1 has n_in = WIDTH,
-// plus N_IN when bit l of SKIP_MASK is set: its input is [h_(l-1), x] (activations, then network input).
-// The output layer maps WIDTH to N_OUT; output column j gets activation OUT_ACTS[j].
+// The network's -D description, its parameter layout and the activations: mlp_common.clh.
 //
 // Everything is specialised with -D (set by FullyFusedMLP); the defaults make the file build alone.
 #include "common.clh"
-#include "layout.clh"
+#include "mlp_common.clh"
 
-#ifndef N_IN
-#define N_IN 32
-#endif
-#ifndef WIDTH
-#define WIDTH 64
-#endif
-#ifndef N_HIDDEN
-#define N_HIDDEN 3
-#endif
-#ifndef N_OUT
-#define N_OUT 16
-#endif
-#ifndef SKIP_MASK
-#define SKIP_MASK 0u
-#endif
-#ifndef TOP_SKIP
-#define TOP_SKIP 0  // the highest layer index with a skip (0: none)
-#endif
-#ifndef HIDDEN_ACT
-#define HIDDEN_ACT 1  // 0: None, 1: ReLU
-#endif
-#ifndef OUT_ACTS
-#define OUT_ACTS 0  // per output column: 0 None, 1 ReLU, 2 Sigmoid, 3 Softplus, 4 Tanh
-#endif
-#ifndef BIAS
-#define BIAS 1
-#endif
 #ifndef FWD_R
 #define FWD_R 4
 #endif
@@ -75,51 +45,7 @@
 #define DW_RK 2
 #endif
 
-#define ACT_NONE 0
-#define ACT_RELU 1
-#define ACT_SIGMOID 2
-#define ACT_SOFTPLUS 3
-#define ACT_TANH 4
-
-#define TILE RELIT_TILE  // layout.clh
-// Rows of the training workspace's `act` buffer (feature-major, see the forward kernel): x, ones, h_0, h_1, ...
-#define ACT_H0 (N_IN + 1)
-#define GMAX (WIDTH > N_OUT ? WIDTH : N_OUT)
-
-__constant uchar k_out_act[N_OUT] = {OUT_ACTS};
-
-// Column count of layer l's input, and its parameter row stride.
-#define LAYER_IN(l) ((l) == 0 ? N_IN : WIDTH + ((((SKIP_MASK) >> (l)) & 1u) ? N_IN : 0))
-#define LAYER_OUT(l) ((l) == N_HIDDEN ? N_OUT : WIDTH)
-#define LAYER_STRIDE(l) (LAYER_IN(l) + BIAS)
-
-// Offset of layer l's parameters (0 < l <= N_HIDDEN) from the start of the network's slice.
-inline uint layer_offset(uint l) {
-  if (l == 0) return 0;
-  const uint skips_below = popcount((uint)(SKIP_MASK) & ((1u << l) - 1u));
-  return (N_IN + BIAS) * WIDTH + (l - 1) * (WIDTH + BIAS) * WIDTH + skips_below * N_IN * WIDTH;
-}
-
-inline float16 apply_act(float16 z, uint a) {
-  switch (a) {
-    case ACT_RELU: return fmax(z, 0.0f);
-    case ACT_SIGMOID: return 1.0f / (1.0f + exp(-z));
-    case ACT_SOFTPLUS: return fmax(z, 0.0f) + log1p(exp(-fabs(z)));
-    case ACT_TANH: return tanh(z);
-    default: return z;
-  }
-}
-
-// d act / d z, from the activation's output y (which the backward pass has; z is not saved).
-inline float16 act_grad(float16 y, uint a) {
-  switch (a) {
-    case ACT_RELU: return select((float16)0.0f, (float16)1.0f, y > 0.0f);
-    case ACT_SIGMOID: return y * (1.0f - y);
-    case ACT_SOFTPLUS: return -expm1(-y);  // sigmoid(z) = 1 - exp(-softplus(z))
-    case ACT_TANH: return fma(-y, y, 1.0f);
-    default: return (float16)1.0f;
-  }
-}
+MLP_DEFINE_ACTIVATIONS(float16, apply_act, act_grad)
 
 inline float16 hidden_act(float16 z) {
 #if HIDDEN_ACT == ACT_RELU

@@ -11,6 +11,7 @@
 #include <Eigen/Dense>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <random>
 
@@ -32,6 +33,22 @@ std::unique_ptr<FullyFusedMLP> make_mlp(const Json& config, std::uint32_t n_in, 
 }
 
 using reference::random_vector;
+
+using Blocking = FullyFusedMLP::Blocking;
+using WorkGroupParams = FullyFusedMLP::WorkGroupParams;
+
+// Work-group parameters that every device must run alike: the NVIDIA row of the table (128-sample tiles of
+// 128 work-items, lowered to fit local memory where it is small), and odd sizes: 48-sample tiles, 40
+// work-items, 3 x 6 register blocks and 5-column weight slices that divide nothing, 12 x 12 dW tiles staged 7
+// samples at a time, and 112-sample dW chunks, so that a batch of a few hundred samples has several partials.
+const WorkGroupParams kWgNvidia{128, 128, 4, 8, 16, 64, 4, 16, 4096};
+const WorkGroupParams kWgOdd{48, 40, 3, 6, 5, 12, 3, 7, 112};
+
+// The kernel variants the small-network tests run: the device's choice ("auto") and each variant forced.
+void use_variant(FullyFusedMLP& net, const std::string& variant) {
+  if (variant == "simd") net.set_blocking(Blocking{});
+  if (variant == "workgroup") net.set_workgroup(kWgOdd);
+}
 
 struct Case {
   const char* name;
@@ -101,18 +118,26 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
   Buffer<float> gbuf(device, params.size());
   Reference ref(*net, params, offset);
 
-  // The device's default register blocking, and others that every device must run alike: the AVX2/GPU and
-  // AVX-512 ones, and odd sizes (3 tiles per work-item, blocks that do not divide the widths), each with the
-  // separate backward kernels and with the fused training kernel (forced for every network size).
+  // The device's choice, and kernels that every device must run alike. The SIMD variant with the AVX2/GPU and
+  // AVX-512 register blockings and odd sizes (3 tiles per work-item, blocks that do not divide the widths),
+  // each with the separate backward kernels and with the fused training kernel (forced for every network
+  // size); the work-group variant with the NVIDIA row's parameters and odd ones (kWgOdd).
   constexpr std::uint32_t kAlways = 1u << 30;
-  std::vector<std::optional<FullyFusedMLP::Blocking>> blockings = {
-      std::nullopt,
-      FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 16, 0},
-      FullyFusedMLP::Blocking{2, 8, 8, 16, 4, 4, 16, 0},
-      FullyFusedMLP::Blocking{2, 8, 8, 16, 4, 4, 16, kAlways},
-      FullyFusedMLP::Blocking{3, 5, 3, 16, 3, 5, 9, 0, 6},
-      FullyFusedMLP::Blocking{3, 5, 3, 16, 3, 5, 9, kAlways, 3},
-      FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 16, kAlways, 5}};
+  struct Kernels {
+    std::optional<Blocking> blocking;
+    std::optional<WorkGroupParams> workgroup;
+  };
+  std::vector<Kernels> variants = {{},
+                                   {Blocking{1, 4, 4, 8, 4, 3, 16, 0}, {}},
+                                   {Blocking{2, 8, 8, 16, 4, 4, 16, 0}, {}},
+                                   {Blocking{2, 8, 8, 16, 4, 4, 16, kAlways}, {}},
+                                   {Blocking{3, 5, 3, 16, 3, 5, 9, 0, 6}, {}},
+                                   {Blocking{3, 5, 3, 16, 3, 5, 9, kAlways, 3}, {}},
+                                   {Blocking{1, 4, 4, 8, 4, 3, 16, kAlways, 5}, {}},
+                                   {{}, kWgNvidia},
+                                   {{}, kWgOdd}};
+  // PoCL builds each work-group program of the 256-wide network for minutes on 2 cores: there the odd sizes only.
+  if (net->width() == 256) variants.erase(variants.end() - 2);
   // Inputs and the double reference per batch size (d_output rows beyond the batch hold garbage, 16 extra
   // rows: the kernels must ignore them).
   struct BatchCase {
@@ -134,14 +159,17 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
     ref.backward(xm, to_mat(b.dyh, batch, c.n_out), b.want_dp, b.want_dx);
     batches.push_back(std::move(b));
   }
-  for (const auto& blocking : blockings) {
-    net->set_blocking(blocking);
+  for (const Kernels& variant : variants) {
+    if (variant.workgroup)
+      net->set_workgroup(variant.workgroup);
+    else
+      net->set_blocking(variant.blocking);
     // One workspace and one set of matrices for every batch size: sized by the first, reused by the smaller.
     auto ws = net->make_workspace(device);
     BatchMatrix x(device, 1000, c.n_in), y(device, 1000, c.n_out), dy(device, 1000, c.n_out), dx(device, 1000, c.n_in);
     for (const BatchCase& b : batches) {
-      SCOPED_TRACE(std::string(c.name) + " batch " + std::to_string(b.batch) + " blocking " +
-                   (blocking ? blocking->str() : "default " + net->blocking(device).str()));
+      SCOPED_TRACE(std::string(c.name) + " batch " + std::to_string(b.batch) + " kernels " +
+                   net->kernel_choice(device).str());
       x.resize(b.batch);
       x.upload_row_major(b.xh);
       dy.resize(b.batch + b.garbage_rows);
@@ -190,8 +218,12 @@ struct Small {
   }
 };
 
-TEST(FullyFusedMLP, AccumulateAddsToGradients) {
+// The small-network tests run with the device's choice and with each variant forced.
+class MlpVariant : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(MlpVariant, AccumulateAddsToGradients) {
   Small s;
+  use_variant(*s.net, GetParam());
   const std::uint32_t batch = 300;
   Buffer<float> pbuf(s.device, s.params);
   BatchMatrix x(s.device, batch, 5), y(s.device, batch, 4), dy(s.device, batch, 4);
@@ -210,8 +242,9 @@ TEST(FullyFusedMLP, AccumulateAddsToGradients) {
     ASSERT_NEAR(sum[i], base[i] + once[i], 1e-6 * (1 + std::abs(base[i]) + std::abs(once[i]))) << i;
 }
 
-TEST(FullyFusedMLP, BitForBitDeterministic) {
+TEST_P(MlpVariant, BitForBitDeterministic) {
   Small s(Json{{"n_neurons", 64}}, 32, 4);
+  use_variant(*s.net, GetParam());
   const std::uint32_t batch = test::tiny_sizes() ? 300 : 2000;  // several weight-gradient chunks
   Buffer<float> pbuf(s.device, s.params);
   BatchMatrix x(s.device, batch, 32), dy(s.device, batch, 4);
@@ -239,8 +272,9 @@ TEST(FullyFusedMLP, BitForBitDeterministic) {
 // Central differences of L = sum(c .* f(x)), with a smooth network (hidden activation None, smooth heads),
 // evaluated on the device in float (so the device's forward and backward are checked against each other)
 // and on the double reference (which checks the reference itself).
-TEST(FullyFusedMLP, GradientsMatchCentralFiniteDifferences) {
+TEST_P(MlpVariant, GradientsMatchCentralFiniteDifferences) {
   Small s(Json{{"activation", "None"}});
+  use_variant(*s.net, GetParam());
   const std::uint32_t batch = 40, n_in = 5, n_out = 4;
   const auto xh = random_vector(batch * n_in, 11);
   const auto ch = random_vector(batch * n_out, 12);
@@ -307,6 +341,9 @@ TEST(FullyFusedMLP, GradientsMatchCentralFiniteDifferences) {
     EXPECT_NEAR(ref_dx(idx / n_in, idx % n_in), dxh[idx], 1e-4 * (1 + std::abs(fd))) << "input " << idx;
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(FullyFusedMLP, MlpVariant, ::testing::Values("auto", "simd", "workgroup"),
+                         [](const auto& info) { return info.param; });
 
 TEST(FullyFusedMLP, InitialisationIsDeterministicAndScaled) {
   Small a, b;
@@ -398,6 +435,68 @@ TEST(FullyFusedMLP, BlockingFollowsTheDevice) {
   EXPECT_TRUE(s.net->blocking(s.device) == odd);
   s.net->set_blocking(std::nullopt);
   EXPECT_TRUE(s.net->blocking(s.device) == FullyFusedMLP::default_blocking(s.device.info()));
+}
+
+TEST(FullyFusedMLP, KernelVariantFollowsTheTableConfigAndEnvironment) {
+  using Variant = FullyFusedMLP::Variant;
+  // The test sets RELIT_MLP_VARIANT itself; a value the suite runs under is put back at the end.
+  const char* outer = std::getenv("RELIT_MLP_VARIANT");
+  const std::string saved = outer ? outer : "";
+  ::unsetenv("RELIT_MLP_VARIANT");
+  DeviceInfo cpu, nvidia, amd, intel, other;
+  cpu.type = "cpu";
+  cpu.vendor = "AuthenticAMD";
+  cpu.preferred_vector_width_float = 16;
+  nvidia.type = amd.type = intel.type = "gpu";
+  nvidia.vendor = "NVIDIA Corporation";
+  amd.vendor = "Advanced Micro Devices, Inc.";
+  intel.vendor = "Intel(R) Corporation";
+  other.type = "accelerator";
+  other.vendor = "Example";
+  const auto c = FullyFusedMLP::device_default(cpu);
+  EXPECT_EQ(c.variant, Variant::Simd);
+  EXPECT_TRUE(c.tuned);
+  EXPECT_TRUE(c.blocking == FullyFusedMLP::default_blocking(cpu));
+  for (const DeviceInfo* gpu : {&nvidia, &amd, &intel, &other}) {
+    const auto g = FullyFusedMLP::device_default(*gpu);
+    EXPECT_EQ(g.variant, Variant::WorkGroup) << gpu->vendor;
+    EXPECT_FALSE(g.tuned) << gpu->vendor;  // no GPU was measured
+  }
+  EXPECT_NE(FullyFusedMLP::device_default(nvidia).source.find("NVIDIA"), std::string::npos);
+  EXPECT_NE(FullyFusedMLP::device_default(amd).source.find("AMD"), std::string::npos);
+  EXPECT_EQ(FullyFusedMLP::device_default(amd).workgroup.items, 256u);
+  EXPECT_NE(FullyFusedMLP::device_default(intel).source.find("Intel"), std::string::npos);
+  EXPECT_NE(FullyFusedMLP::device_default(other).source.find("other"), std::string::npos);
+
+  // The config's kernel_variant, then RELIT_MLP_VARIANT over it, then set_blocking() / set_workgroup().
+  const Device device = test::test_device();
+  Small simd(Json{{"kernel_variant", "simd"}}), wg(Json{{"kernel_variant", "workgroup"}}), automatic;
+  EXPECT_EQ(simd.net->kernel_choice(device).variant, Variant::Simd);
+  EXPECT_EQ(wg.net->kernel_choice(device).variant, Variant::WorkGroup);
+  EXPECT_EQ(wg.net->kernel_choice(device).source, "kernel_variant");
+  EXPECT_EQ(automatic.net->kernel_choice(device).variant, FullyFusedMLP::default_kernels(device.info()).variant);
+  EXPECT_EQ(wg.net->hyperparams().at("kernel_variant"), "workgroup");
+  ::setenv("RELIT_MLP_VARIANT", "workgroup", 1);
+  EXPECT_EQ(FullyFusedMLP::default_kernels(cpu).variant, Variant::WorkGroup);
+  EXPECT_FALSE(FullyFusedMLP::default_kernels(cpu).tuned);
+  simd.net->set_blocking(std::nullopt);  // rebuilds: the environment is read when the kernels are built
+  EXPECT_EQ(simd.net->kernel_choice(device).variant, Variant::WorkGroup);
+  EXPECT_EQ(simd.net->kernel_choice(device).source, "RELIT_MLP_VARIANT");
+  simd.net->set_blocking(Blocking{});
+  EXPECT_EQ(simd.net->kernel_choice(device).variant, Variant::Simd);
+  ::setenv("RELIT_MLP_VARIANT", "SIMD", 1);
+  EXPECT_EQ(FullyFusedMLP::default_kernels(nvidia).variant, Variant::Simd);
+  ::setenv("RELIT_MLP_VARIANT", "gpu", 1);
+  EXPECT_THROW(FullyFusedMLP::default_kernels(cpu), InvalidArgument);
+  if (outer)
+    ::setenv("RELIT_MLP_VARIANT", saved.c_str(), 1);
+  else
+    ::unsetenv("RELIT_MLP_VARIANT");
+
+  EXPECT_THROW(wg.net->set_workgroup(WorkGroupParams{40, 64, 4, 4, 16, 32, 4, 16, 2048}), InvalidArgument);
+  EXPECT_THROW(wg.net->set_workgroup(WorkGroupParams{64, 64, 4, 4, 16, 30, 4, 16, 2048}), InvalidArgument);
+  EXPECT_THROW(wg.net->set_workgroup(WorkGroupParams{64, 64, 4, 4, 16, 32, 4, 16, 100}), InvalidArgument);
+  expect_config_error({{"kernel_variant", "gpu"}}, "/network/kernel_variant", "workgroup");
 }
 
 }  // namespace

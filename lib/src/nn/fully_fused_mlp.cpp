@@ -3,6 +3,7 @@
 
 #include <relit/cl/program.hpp>
 #include <relit/error.hpp>
+#include <relit/log.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -86,31 +87,6 @@ std::string FullyFusedMLP::Blocking::str() const {
          " G" + std::to_string(train_group);
 }
 
-// Register blocks (kernels/mlp.cl; measurements in docs/networks.md). A work-item's accumulators must fit the
-// vector registers: NR x FWD_T float16 for the forward/backward blocks, DW_RJ x DW_RK vectors for dW.
-//  - AVX2 CPUs and GPUs: one tile per work-item, 4 outputs per block (a float16 is two ymm registers on
-//    AVX2: 8 accumulators of 16), float8 dW accumulators in 4 x 3 blocks.
-//  - AVX-512 CPUs (16-float native vectors, 32 zmm registers): a float16 is one register and two loads per
-//    cycle feed two FMAs, so a block must reuse each load: four tiles per work-item (every weight broadcast
-//    feeds four FMAs) and 6 outputs per block (every activation load feeds six; 24 accumulators), float16 dW
-//    accumulators in 5 x 5 blocks, and the fused training kernel for small networks, whose separate
-//    backward kernels are bound by memory traffic (2-core Zen 5, docs/networks.md).
-FullyFusedMLP::Blocking FullyFusedMLP::default_blocking(const DeviceInfo& info) {
-  Blocking b;
-  if (info.type == "cpu" && info.preferred_vector_width_float >= 16) {
-    b.forward_tiles = 4;
-    b.forward_rows = 6;
-    b.backward_rows = 6;
-    b.dw_vector = 16;
-    b.dw_rows = 5;
-    b.dw_cols = 5;
-    b.dw_region = 20;
-    b.fused_train_max_params = 16384;  // 1 MiB of accumulators per work-item
-    b.train_group = 8;
-  }
-  return b;
-}
-
 void FullyFusedMLP::set_blocking(std::optional<Blocking> blocking) {
   if (blocking) {
     const Blocking& b = *blocking;
@@ -128,21 +104,65 @@ void FullyFusedMLP::set_blocking(std::optional<Blocking> blocking) {
   }
   std::lock_guard<std::mutex> lock(m_mutex);
   m_blocking = blocking;
+  m_workgroup.reset();
+  m_kernels.clear();
+}
+
+void FullyFusedMLP::set_workgroup(std::optional<WorkGroupParams> params) {
+  if (params) {
+    const WorkGroupParams& p = *params;
+    auto check = [](bool ok, const std::string& what) {
+      if (!ok) throw InvalidArgument("FullyFusedMLP::set_workgroup: " + what);
+    };
+    check(p.samples >= 16 && p.samples <= 512 && p.samples % 16 == 0, "samples must be a multiple of 16 in [16, 512]");
+    check(p.items >= 1 && p.items <= 1024, "items must be in [1, 1024]");
+    check(p.rows >= 1 && p.rows <= 16 && p.cols >= 1 && p.cols <= 16, "rows, cols must be in [1, 16]");
+    check(p.k_tile >= 1 && p.k_tile <= 64, "k_tile must be in [1, 64]");
+    check(p.dw_block >= 1 && p.dw_block <= 8 && p.dw_tile % p.dw_block == 0 && p.dw_tile >= p.dw_block,
+          "dw_block must be in [1, 8] and divide dw_tile");
+    check((p.dw_tile / p.dw_block) * (p.dw_tile / p.dw_block) <= 1024, "(dw_tile / dw_block)^2 must be at most 1024");
+    check(p.dw_samples >= 1 && p.dw_samples <= 128, "dw_samples must be in [1, 128]");
+    check(p.dw_chunk >= 16 && p.dw_chunk % 16 == 0, "dw_chunk must be a positive multiple of 16");
+  }
+  std::lock_guard<std::mutex> lock(m_mutex);
+  m_workgroup = params;
+  m_blocking.reset();
   m_kernels.clear();
 }
 
 FullyFusedMLP::Blocking FullyFusedMLP::blocking(const Device& device) const {
   std::lock_guard<std::mutex> lock(m_mutex);
-  return blocking_locked(device);
+  return choice_locked(device).blocking;
 }
 
-FullyFusedMLP::Blocking FullyFusedMLP::blocking_locked(const Device& device) const {
-  return m_blocking ? *m_blocking : default_blocking(device.info());
+FullyFusedMLP::KernelChoice FullyFusedMLP::choice_locked(const Device& device) const {
+  KernelChoice c = default_kernels(device.info());
+  const KernelChoice row = device_default(device.info());
+  auto force = [&](Variant v, const std::string& source) {
+    if (v != row.variant) c.tuned = false;
+    c.variant = v;
+    c.source = source;
+  };
+  // Forced parameters are tuned when they are the device row's own.
+  if (m_blocking) {
+    c.blocking = *m_blocking;
+    force(Variant::Simd, "set_blocking()");
+    c.tuned = row.tuned && row.variant == Variant::Simd && c.blocking == row.blocking;
+  } else if (m_workgroup) {
+    c.workgroup = *m_workgroup;
+    force(Variant::WorkGroup, "set_workgroup()");
+    c.tuned = row.tuned && row.variant == Variant::WorkGroup && c.workgroup == row.workgroup;
+  } else if (c.source != "RELIT_MLP_VARIANT" && m_variant_config != "auto") {
+    force(m_variant_config == "simd" ? Variant::Simd : Variant::WorkGroup, "kernel_variant");
+  }
+  return c;
 }
 
 struct FullyFusedMLP::Kernels {
   Device device;
-  Blocking blocking;
+  KernelChoice choice;
+  Blocking blocking;  // choice.blocking
+  bool workgroup = false;
   Kernel forward, backward, weight_grad, reduce, train;
   std::size_t local_forward = 0, local_backward = 0, local_weight_grad = 0, local_reduce = 0;
 };
@@ -167,6 +187,10 @@ FullyFusedMLP::FullyFusedMLP(config::Reader& r, std::uint32_t n_input_dims, std:
                                 std::to_string(m_n_hidden) + " a skip layer must be in [1, " +
                                 std::to_string(m_n_hidden - 1) + "]" + (m_n_hidden == 1 ? " (none possible)" : ""));
 
+  m_variant_config = r.choice("kernel_variant", "auto", {"auto", "simd", "workgroup"},
+                              "which kernels run the network: auto (the device's table: SIMD kernels on CPUs, "
+                              "work-group kernels on GPUs), simd or workgroup; RELIT_MLP_VARIANT overrides it "
+                              "(docs/networks.md)");
   const bool has_heads = r.has("output_heads");
   if (has_heads && r.has("output_activation"))
     r.fail("output_heads", "give either output_activation or output_heads, not both");
@@ -247,7 +271,7 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
   std::lock_guard<std::mutex> lock(m_mutex);
   for (const auto& k : m_kernels)
     if (k->device == device) return *k;
-  const Blocking b = blocking_locked(device);
+  KernelChoice choice = choice_locked(device);
   std::uint32_t skip_mask = 0, top_skip = 0;
   for (std::uint32_t l : m_skip_layers) {
     skip_mask |= 1u << l;
@@ -255,7 +279,7 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
   }
   std::string acts;
   for (Activation a : m_output_activations) acts += (acts.empty() ? "" : ",") + std::to_string(static_cast<int>(a));
-  const Defines defines = {{"N_IN", std::to_string(m_n_input)},
+  const Defines network = {{"N_IN", std::to_string(m_n_input)},
                            {"WIDTH", std::to_string(m_width)},
                            {"N_HIDDEN", std::to_string(m_n_hidden)},
                            {"N_OUT", std::to_string(m_n_output)},
@@ -263,40 +287,101 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
                            {"TOP_SKIP", std::to_string(top_skip)},
                            {"HIDDEN_ACT", std::to_string(static_cast<int>(m_hidden_activation))},
                            {"OUT_ACTS", acts},
-                           {"BIAS", m_bias ? "1" : "0"},
-                           {"FWD_T", std::to_string(b.forward_tiles)},
-                           {"FWD_R", std::to_string(b.forward_rows)},
-                           {"BWD_R", std::to_string(b.backward_rows)},
-                           {"DW_VEC", std::to_string(b.dw_vector)},
-                           {"DW_RJ", std::to_string(b.dw_rows)},
-                           {"DW_RK", std::to_string(b.dw_cols)},
-                           {"DW_ROWS", std::to_string(b.dw_region)},
-                           {"TRAIN_G", std::to_string(b.train_group)}};
-  const Program program = device.program("mlp.cl", defines);
+                           {"BIAS", m_bias ? "1" : "0"}};
   auto k = std::make_unique<Kernels>();
   k->device = device;
-  k->blocking = b;
-  k->forward = program.kernel("mlp_forward");
-  k->backward = program.kernel("mlp_backward");
-  k->weight_grad = program.kernel("mlp_weight_grad_partial");
-  k->reduce = program.kernel("mlp_reduce_chunks");
-  k->train = program.kernel("mlp_train_fused");
   // The preferred multiple is the SIMD/warp width of the device; on a CPU each work-group runs on one core.
   auto local = [](const Kernel& kernel) {
     return std::max<std::size_t>(1, std::min(kernel.preferred_work_group_multiple(), kernel.max_work_group_size()));
   };
-  k->local_forward = local(k->forward);
-  k->local_backward = local(k->backward);
-  k->local_weight_grad = local(k->weight_grad);
-  k->local_reduce = local(k->reduce);
+
+  if (choice.variant == Variant::WorkGroup) {
+    // The largest tile (a multiple of 16 samples, at most the chosen one) whose local arrays fit the device.
+    WorkGroupParams& p = choice.workgroup;
+    const std::size_t weights = std::size_t(m_width) * (p.k_tile + 1);
+    auto local_floats = [&](std::size_t s) {
+      const std::size_t rows = m_skip_layers.empty() ? std::max(m_n_input, m_width) : m_n_input + m_width;
+      const std::size_t fwd = rows * s + weights;  // kernels/mlp_wg.cl: X_ROWS + H_ROWS
+      const std::size_t bwd = std::size_t(std::max(m_width, m_n_output)) * s + weights;
+      const std::size_t dw = 2 * std::size_t(p.dw_tile) * (p.dw_samples + 1);
+      return std::max({fwd, bwd, dw});
+    };
+    const std::uint64_t budget = device.info().local_memory;
+    while (p.samples > 16 && local_floats(p.samples) * sizeof(float) > budget) p.samples -= 16;
+    const std::size_t dw_items = std::size_t(p.dw_tile / p.dw_block) * (p.dw_tile / p.dw_block);
+    std::string why;
+    if (local_floats(p.samples) * sizeof(float) > budget)
+      why = "they need " + std::to_string(local_floats(p.samples) * sizeof(float)) + " bytes of local memory and " +
+            device.info().name + " has " + std::to_string(budget);
+    else if (std::max<std::size_t>(p.items, dw_items) > device.info().max_work_group_size)
+      why = "work-groups of " + std::to_string(std::max<std::size_t>(p.items, dw_items)) + " work-items exceed " +
+            device.info().name + "'s limit of " + std::to_string(device.info().max_work_group_size);
+    if (why.empty()) {
+      Defines defines = network;
+      defines.insert({{"WG_S", std::to_string(p.samples)},
+                      {"WG_SIZE", std::to_string(p.items)},
+                      {"WG_RJ", std::to_string(p.rows)},
+                      {"WG_RS", std::to_string(p.cols)},
+                      {"WG_KT", std::to_string(p.k_tile)},
+                      {"DW_T", std::to_string(p.dw_tile)},
+                      {"DW_R", std::to_string(p.dw_block)},
+                      {"DW_S", std::to_string(p.dw_samples)}});
+      const Program program = device.program("mlp_wg.cl", defines);
+      k->forward = program.kernel("mlp_wg_forward");
+      k->backward = program.kernel("mlp_wg_backward");
+      k->weight_grad = program.kernel("mlp_wg_weight_grad");
+      k->reduce = program.kernel("mlp_wg_reduce");
+      const std::size_t limit = std::min({k->forward.max_work_group_size(), k->backward.max_work_group_size()});
+      if (limit < p.items || k->weight_grad.max_work_group_size() < dw_items)
+        why = "the compiled kernels accept at most " + std::to_string(limit) + " work-items per group";
+    }
+    if (why.empty()) {
+      k->workgroup = true;
+      k->local_forward = k->local_backward = p.items;
+      k->local_weight_grad = dw_items;
+      k->local_reduce = local(k->reduce);
+    } else {  // a working network rather than an error: the SIMD kernels run on every device
+      log_warning("FullyFusedMLP: the work-group kernels (" + p.str() + ") do not fit: " + why +
+                  "; running the SIMD kernels (set kernel_variant or RELIT_MLP_VARIANT to simd to silence this)");
+      choice.variant = Variant::Simd;
+      choice.source += ", work-group kernels did not fit";
+    }
+  }
+  if (!k->workgroup) {
+    const Blocking& b = choice.blocking;
+    Defines defines = network;
+    defines.insert({{"FWD_T", std::to_string(b.forward_tiles)},
+                    {"FWD_R", std::to_string(b.forward_rows)},
+                    {"BWD_R", std::to_string(b.backward_rows)},
+                    {"DW_VEC", std::to_string(b.dw_vector)},
+                    {"DW_RJ", std::to_string(b.dw_rows)},
+                    {"DW_RK", std::to_string(b.dw_cols)},
+                    {"DW_ROWS", std::to_string(b.dw_region)},
+                    {"TRAIN_G", std::to_string(b.train_group)}});
+    const Program program = device.program("mlp.cl", defines);
+    k->forward = program.kernel("mlp_forward");
+    k->backward = program.kernel("mlp_backward");
+    k->weight_grad = program.kernel("mlp_weight_grad_partial");
+    k->reduce = program.kernel("mlp_reduce_chunks");
+    k->train = program.kernel("mlp_train_fused");
+    k->local_forward = local(k->forward);
+    k->local_backward = local(k->backward);
+    k->local_weight_grad = local(k->weight_grad);
+    k->local_reduce = local(k->reduce);
+  }
+  k->choice = choice;
+  k->blocking = choice.blocking;
   m_kernels.push_back(std::move(k));
   return *m_kernels.back();
 }
 
+FullyFusedMLP::KernelChoice FullyFusedMLP::kernel_choice(const Device& device) const { return kernels(device).choice; }
+
 void FullyFusedMLP::warm_up(const Device& device) const { kernels(device); }
 
 bool FullyFusedMLP::fused_training(const Device& device) const {
-  return n_params() <= kernels(device).blocking.fused_train_max_params;
+  const auto& k = kernels(device);
+  return !k.workgroup && n_params() <= k.blocking.fused_train_max_params;
 }
 
 void FullyFusedMLP::check_input(const char* what, const BatchMatrix& input) const {
@@ -322,9 +407,16 @@ void FullyFusedMLP::launch_forward(const Device& device, ConstParamSlice params,
   const std::uint32_t n_tiles = (input.batch() + kBatchTile - 1) / kBatchTile;
   if (n_tiles == 0) return;
   Kernel kernel = k.forward;
-  kernel.args(n_tiles, act_padded, *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(),
-              output.data(), act ? *act : output.data(), static_cast<std::uint32_t>(act ? 1 : 0));
-  kernel.launch((n_tiles + k.blocking.forward_tiles - 1) / k.blocking.forward_tiles, k.local_forward);
+  // The SIMD kernel counts tiles of 16 samples, the work-group kernel samples (the batch rounded up to 16).
+  kernel.args(k.workgroup ? n_tiles * kBatchTile : n_tiles, act_padded, *params.buffer,
+              static_cast<std::uint32_t>(params.offset), input.data(), output.data(), act ? *act : output.data(),
+              static_cast<std::uint32_t>(act ? 1 : 0));
+  if (k.workgroup) {
+    const std::size_t s = k.choice.workgroup.samples, groups = (std::size_t(n_tiles) * kBatchTile + s - 1) / s;
+    kernel.launch(groups * k.local_forward, k.local_forward);
+  } else {
+    kernel.launch((n_tiles + k.blocking.forward_tiles - 1) / k.blocking.forward_tiles, k.local_forward);
+  }
 }
 
 void FullyFusedMLP::inference(const Device& device, ConstParamSlice params, const BatchMatrix& input,
@@ -417,6 +509,10 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     return;
   }
   if (!ws->saved) throw InvalidArgument("FullyFusedMLP::backward: call forward() with this workspace and batch first");
+  if (k.workgroup) {
+    backward_workgroup(device, params, output, d_output, grads, accumulate, d_input, *ws);
+    return;
+  }
 
   // Chunks of the batch for the weight-gradient partials (fixed for a given batch and device: reproducible).
   std::uint32_t max_in = 0;
@@ -459,6 +555,50 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
 
   // 3. Fixed-order sum over chunks into the gradient slice.
   reduce_chunks(plan.n_chunks);
+}
+
+// The work-group variant of backward(): dZ and dL/dx per tile of samples, then per layer the weight-gradient
+// partials of chunks of dw_chunk samples (fewer, longer chunks when the partial buffer would exceed
+// kMaxPartialFloats) and dW tiles, then their fixed-order sum (kernels/mlp_wg.cl).
+void FullyFusedMLP::backward_workgroup(const Device& device, ConstParamSlice params, const BatchMatrix& output,
+                                       const BatchMatrix& d_output, ParamSlice grads, bool accumulate,
+                                       BatchMatrix* d_input, Workspace& workspace) const {
+  auto& ws = static_cast<MlpWorkspace&>(workspace);
+  const auto& k = kernels(device);
+  const WorkGroupParams& p = k.choice.workgroup;
+  const std::uint32_t batch = output.batch(), np = n_params();
+  const std::uint32_t n_valid = (batch + kBatchTile - 1) / kBatchTile * kBatchTile;
+  const std::size_t min_chunk = (n_valid + std::max<std::size_t>(1, kMaxPartialFloats / np) - 1) /
+                                std::max<std::size_t>(1, kMaxPartialFloats / np);
+  const std::uint32_t chunk_len =
+      static_cast<std::uint32_t>(round_up(std::max<std::size_t>(p.dw_chunk, min_chunk), kBatchTile));
+  const std::uint32_t n_chunks = (n_valid + chunk_len - 1) / chunk_len;
+  if (ws.partial.size() < std::size_t(n_chunks) * np) ws.partial = Buffer<float>(device, std::size_t(n_chunks) * np);
+
+  Kernel bk = k.backward;
+  bk.args(n_valid, ws.padded, batch, *params.buffer, static_cast<std::uint32_t>(params.offset), output.data(),
+          d_output.data(), ws.act, ws.dz, d_input ? d_input->data() : ws.dz,
+          static_cast<std::uint32_t>(d_input ? 1 : 0));
+  const std::size_t groups = (std::size_t(n_valid) + p.samples - 1) / p.samples;
+  bk.launch(groups * k.local_backward, k.local_backward);
+
+  Kernel wk = k.weight_grad;
+  for (std::uint32_t l = 0; l <= m_n_hidden; ++l) {
+    const std::uint32_t n_out = layer_outputs(l);
+    const std::uint32_t a_n = l == 0 ? 0 : m_width;
+    const std::uint32_t x_row = l == 0 || has_skip(l) ? 0 : m_n_input;  // x rows then the ones row
+    const std::uint32_t x_n = (l == 0 || has_skip(l) ? m_n_input : 0) + (m_bias ? 1 : 0);
+    const std::size_t tiles =
+        std::size_t((n_out + p.dw_tile - 1) / p.dw_tile) * ((a_n + x_n + p.dw_tile - 1) / p.dw_tile);
+    wk.args(n_valid, chunk_len, ws.padded, ws.dz, l * m_width, n_out, ws.act,
+            l == 0 ? 0u : m_n_input + 1 + (l - 1) * m_width, a_n, x_row, x_n, ws.partial, np, layer_offset(l));
+    wk.launch(n_chunks * tiles * k.local_weight_grad, k.local_weight_grad);
+  }
+
+  Kernel rk = k.reduce;
+  rk.args(np, n_chunks, ws.partial, np, *grads.buffer, static_cast<std::uint32_t>(grads.offset),
+          static_cast<std::uint32_t>(accumulate ? 1 : 0));
+  rk.launch(np, k.local_reduce);
 }
 
 }  // namespace relit::nn

@@ -2,7 +2,7 @@
 // "FullyFusedMLP", written for CPU SIMD on PoCL and portable to GPUs).
 //
 //   {"type": "FullyFusedMLP", "n_neurons": 64, "n_hidden_layers": 2, "activation": "ReLU",
-//    "output_activation": "None", "skip_layers": [], "bias": true}
+//    "output_activation": "None", "skip_layers": [], "bias": true, "kernel_variant": "auto"}
 //   {"type": "FullyFusedMLP", "n_neurons": 256, "n_hidden_layers": 8, "skip_layers": [5],
 //    "output_heads": [{"n_dims": 1, "activation": "Softplus"}, {"n_dims": 3, "activation": "Sigmoid"}, ...]}
 //
@@ -13,7 +13,10 @@
 //
 // Parameter layout (see docs/networks.md): layer after layer, each a row-major [n_out][n_in + bias] matrix
 // (PyTorch's nn.Linear weight with the bias appended as the last column). Weight gradients are reduced in a
-// fixed order (no atomics): results are bit-for-bit reproducible on one device (for one Blocking).
+// fixed order (no atomics): results are bit-for-bit reproducible on one device (for one kernel choice).
+//
+// Two kernel variants compute the same network: SIMD kernels for CPUs and work-group kernels for GPUs, chosen
+// per device from a table, overridable by "kernel_variant" and RELIT_MLP_VARIANT (docs/networks.md).
 //
 // backward() must be given the input and output of the forward() call on the same workspace, unchanged: on
 // CPUs with AVX-512 small networks train with one fused kernel that recomputes the activations from the
@@ -110,21 +113,73 @@ class FullyFusedMLP final : public Network {
   /// The blocking for a device: AVX-512 CPUs (16-float native vectors) get wider blocks than AVX2 CPUs and
   /// GPUs (docs/networks.md).
   static Blocking default_blocking(const DeviceInfo& info);
-  /// Replaces the device default for kernels built from now on (tests, tuning); std::nullopt restores it.
-  /// Throws InvalidArgument on values out of range.
+  /// Runs the SIMD kernels with this blocking instead of the device's choice, for kernels built from now on
+  /// (tests, tuning); std::nullopt restores the device's choice. Throws InvalidArgument on values out of range.
   void set_blocking(std::optional<Blocking> blocking);
-  /// The blocking the kernels use (or will use) on `device`.
+  /// The blocking the SIMD kernels use (or would use) on `device`.
   Blocking blocking(const Device& device) const;
+
+  /// The two kernel variants (docs/networks.md, "Kernel variants"): the SIMD kernels of kernels/mlp.cl
+  /// (a work-item owns 16-sample tiles as float16 lanes; no barriers, no local memory: CPUs) and the
+  /// work-group kernels of kernels/mlp_wg.cl (a work-group owns a tile of samples whose activations stay in
+  /// local memory across the layers, weights staged through local memory: GPUs).
+  enum class Variant : std::uint8_t { Simd, WorkGroup };
+  static const char* variant_name(Variant v);  ///< "simd", "workgroup"
+
+  /// Parameters of the work-group kernels (the -D parameters of kernels/mlp_wg.cl). Any valid set gives the
+  /// same results up to float rounding; it only changes the speed.
+  struct WorkGroupParams {
+    std::uint32_t samples = 64;     ///< WG_S: samples per work-group, a multiple of 16, 16..512 (lowered to
+                                    ///< fit the device's local memory)
+    std::uint32_t items = 64;       ///< WG_SIZE: work-items per work-group (forward, backward), 1..1024
+    std::uint32_t rows = 4;         ///< WG_RJ: outputs per register block, 1..16
+    std::uint32_t cols = 4;         ///< WG_RS: samples per register block, 1..16
+    std::uint32_t k_tile = 16;      ///< WG_KT: weight columns staged in local memory at a time, 1..64
+    std::uint32_t dw_tile = 32;     ///< DW_T: side of the dW tile of a work-group, a multiple of dw_block
+    std::uint32_t dw_block = 4;     ///< DW_R: side of a work-item's dW register block, 1..8;
+                                    ///< (dw_tile / dw_block)^2 work-items per group, at most 1024
+    std::uint32_t dw_samples = 16;  ///< DW_S: samples staged per step of the weight-gradient kernel, 1..128
+    std::uint32_t dw_chunk = 2048;  ///< samples per weight-gradient partial (split-K), a multiple of 16
+    bool operator==(const WorkGroupParams& o) const;
+    std::string str() const;  ///< "S64 N64 4x4 K16 dW32/4 S16 C2048"
+  };
+
+  /// What runs on a device: the variant, the parameters of both variants, and where the choice came from.
+  struct KernelChoice {
+    Variant variant = Variant::Simd;
+    Blocking blocking;          ///< the SIMD kernels' parameters
+    WorkGroupParams workgroup;  ///< the work-group kernels' parameters
+    bool tuned = false;         ///< the parameters were measured on such a device (false: a default)
+    std::string source;         ///< "table: NVIDIA GPU", "RELIT_MLP_VARIANT", "kernel_variant", ...
+    std::string str() const;    ///< "workgroup S128 N128 4x8 K16 dW64/4 S16 C2048 (table: NVIDIA GPU, untuned)"
+  };
+  /// The row of the per-device tuning table (lib/src/nn/mlp_tuning.cpp) for a device: CPUs run the SIMD
+  /// kernels, GPUs and other devices the work-group kernels, with parameters per vendor.
+  static KernelChoice device_default(const DeviceInfo& info);
+  /// device_default() with the RELIT_MLP_VARIANT environment variable (simd, workgroup or auto) applied:
+  /// what a network whose kernel_variant is "auto" runs. Throws InvalidArgument on another value.
+  static KernelChoice default_kernels(const DeviceInfo& info);
+  /// Runs the work-group kernels with these parameters instead of the device's choice, for kernels built from
+  /// now on (tests, tuning); std::nullopt restores the device's choice. Throws InvalidArgument on values out
+  /// of range.
+  void set_workgroup(std::optional<WorkGroupParams> params);
+  /// What the kernels use (or will use) on `device`: set_blocking() / set_workgroup(), else
+  /// RELIT_MLP_VARIANT, else the config's kernel_variant, else the device's table row; the work-group tile
+  /// as lowered to fit the device's local memory (builds the kernels).
+  KernelChoice kernel_choice(const Device& device) const;
   /// Whether backward() runs the fused training kernel on `device` (see Blocking::fused_train_max_params).
   bool fused_training(const Device& device) const;
 
  private:
   struct Kernels;
   const Kernels& kernels(const Device& device) const;
-  Blocking blocking_locked(const Device& device) const;  // blocking(), with m_mutex held
+  KernelChoice choice_locked(const Device& device) const;  // before fitting the device, with m_mutex held
   void launch_forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
                       Buffer<float>* act, std::uint32_t act_padded) const;
   void check_input(const char* what, const BatchMatrix& input) const;
+  void backward_workgroup(const Device& device, ConstParamSlice params, const BatchMatrix& output,
+                          const BatchMatrix& d_output, ParamSlice grads, bool accumulate, BatchMatrix* d_input,
+                          Workspace& workspace) const;
 
   std::uint32_t m_n_input, m_n_output, m_width, m_n_hidden;
   bool m_bias;
@@ -133,7 +188,9 @@ class FullyFusedMLP final : public Network {
   std::vector<std::uint32_t> m_skip_layers;
   Json m_hyperparams;
 
-  std::optional<Blocking> m_blocking;  // set_blocking()
+  std::string m_variant_config;                // kernel_variant: "auto", "simd" or "workgroup"
+  std::optional<Blocking> m_blocking;          // set_blocking()
+  std::optional<WorkGroupParams> m_workgroup;  // set_workgroup()
   mutable std::mutex m_mutex;
   mutable std::vector<std::unique_ptr<Kernels>> m_kernels;  // one set per device
 };

@@ -1,0 +1,144 @@
+// FullyFusedMLP's per-device kernel table (as CLBlast keeps a database of tuned parameters per device): which
+// kernel variant runs on a device, with which parameters, and what those parameters are based on.
+#include <relit/nn/fully_fused_mlp.hpp>
+
+#include <relit/cl/device.hpp>
+#include <relit/error.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <string>
+
+namespace relit::nn {
+
+namespace {
+
+using Variant = FullyFusedMLP::Variant;
+using Blocking = FullyFusedMLP::Blocking;
+using WorkGroupParams = FullyFusedMLP::WorkGroupParams;
+
+// One row: the devices it matches (type, a vendor fragment, a least native float vector width) and what they
+// run. The first matching row wins; the last matches every device.
+struct Row {
+  const char* name;
+  const char* type;    // DeviceInfo::type, "" for any
+  const char* vendor;  // fragments of DeviceInfo::vendor separated by '|' (case-insensitive), "" for any
+  unsigned min_vector_width;
+  Variant variant;
+  Blocking blocking;
+  WorkGroupParams workgroup;
+  bool tuned;
+};
+
+// Register blocks (kernels/mlp.cl; measurements in docs/networks.md). A work-item's accumulators must fit the
+// vector registers: NR x FWD_T float16 for the forward/backward blocks, DW_RJ x DW_RK vectors for dW.
+//  - AVX2 CPUs and GPUs: one tile per work-item, 4 outputs per block (a float16 is two ymm registers on
+//    AVX2: 8 accumulators of 16), float8 dW accumulators in 4 x 3 blocks.
+//  - AVX-512 CPUs (16-float native vectors, 32 zmm registers): a float16 is one register and two loads per
+//    cycle feed two FMAs, so a block must reuse each load: four tiles per work-item (every weight broadcast
+//    feeds four FMAs) and 6 outputs per block (every activation load feeds six; 24 accumulators), float16 dW
+//    accumulators in 5 x 5 blocks, and the fused training kernel for small networks, whose separate
+//    backward kernels are bound by memory traffic (2-core Zen 5, docs/networks.md).
+constexpr Blocking kAvx2{};
+constexpr Blocking kAvx512{4, 6, 6, 16, 5, 5, 20, 16384, 8};
+
+// Work-group parameters: samples, items, rows x cols register block, k_tile, dW tile / block / samples, dW
+// chunk. None of the GPU rows is tuned: no GPU was available to measure on; they are starting points, based on:
+//  - NVIDIA: tiny-cuda-nn's fully fused MLP runs 128 samples per block (16 x N_ITERS = 8) with 32 x WIDTH/16
+//    threads (128 at width 64), and its weight gradients as split-K GEMMs over chunks of min(4096, batch)
+//    samples. OpenCL on NVIDIA gets 48 KiB of local memory per group, so from width 128 the tile is lowered
+//    (FullyFusedMLP fits it to the device). 4 x 8 register blocks: 2 blocks per work-item at width 64.
+//  - AMD: the same tile, 256 work-items (four 64-wide wavefronts on GCN/CDNA, eight 32-wide ones on RDNA);
+//    64 KiB of LDS per group.
+//  - Intel: 64 samples and 128 work-items (EUs run SIMD8-32 sub-groups; 64 KiB of SLM per sub-slice), 4 x 4
+//    blocks, 32 x 32 dW tiles.
+//  - any other device: small groups (64 work-items) that every OpenCL device accepts.
+constexpr WorkGroupParams kWgNvidia{128, 128, 4, 8, 16, 64, 4, 16, 4096};
+constexpr WorkGroupParams kWgAmd{128, 256, 4, 8, 16, 64, 4, 16, 4096};
+constexpr WorkGroupParams kWgIntel{64, 128, 4, 4, 16, 32, 4, 16, 2048};
+constexpr WorkGroupParams kWgOther{64, 64, 4, 4, 16, 32, 4, 16, 2048};
+
+const Row kTable[] = {
+    // CPUs: the SIMD kernels, measured (PoCL on 2-core AMD EPYC machines with AVX2 and with AVX-512, Zen 5;
+    // docs/networks.md). Their work-group parameters are only used when the work-group variant is forced.
+    {"AVX-512 CPU", "cpu", "", 16, Variant::Simd, kAvx512, kWgOther, true},
+    {"CPU", "cpu", "", 0, Variant::Simd, kAvx2, kWgOther, true},
+    {"NVIDIA GPU", "gpu", "nvidia", 0, Variant::WorkGroup, kAvx2, kWgNvidia, false},
+    {"AMD GPU", "gpu", "advanced micro devices|amd", 0, Variant::WorkGroup, kAvx2, kWgAmd, false},
+    {"Intel GPU", "gpu", "intel", 0, Variant::WorkGroup, kAvx2, kWgIntel, false},
+    {"other device", "", "", 0, Variant::WorkGroup, kAvx2, kWgOther, false},
+};
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return s;
+}
+
+bool vendor_matches(const std::string& vendor, const std::string& fragments) {
+  if (fragments.empty()) return true;
+  const std::string v = lower(vendor);
+  std::size_t start = 0;
+  while (start <= fragments.size()) {
+    const std::size_t end = std::min(fragments.find('|', start), fragments.size());
+    if (v.find(fragments.substr(start, end - start)) != std::string::npos) return true;
+    start = end + 1;
+  }
+  return false;
+}
+
+}  // namespace
+
+const char* FullyFusedMLP::variant_name(Variant v) { return v == Variant::Simd ? "simd" : "workgroup"; }
+
+bool FullyFusedMLP::WorkGroupParams::operator==(const WorkGroupParams& o) const {
+  return samples == o.samples && items == o.items && rows == o.rows && cols == o.cols && k_tile == o.k_tile &&
+         dw_tile == o.dw_tile && dw_block == o.dw_block && dw_samples == o.dw_samples && dw_chunk == o.dw_chunk;
+}
+
+std::string FullyFusedMLP::WorkGroupParams::str() const {
+  return "S" + std::to_string(samples) + " N" + std::to_string(items) + " " + std::to_string(rows) + "x" +
+         std::to_string(cols) + " K" + std::to_string(k_tile) + " dW" + std::to_string(dw_tile) + "/" +
+         std::to_string(dw_block) + " S" + std::to_string(dw_samples) + " C" + std::to_string(dw_chunk);
+}
+
+std::string FullyFusedMLP::KernelChoice::str() const {
+  return std::string(variant_name(variant)) + " " + (variant == Variant::Simd ? blocking.str() : workgroup.str()) +
+         " (" + source + (tuned ? "" : ", untuned") + ")";
+}
+
+FullyFusedMLP::KernelChoice FullyFusedMLP::device_default(const DeviceInfo& info) {
+  for (const Row& row : kTable) {
+    if (*row.type && info.type != row.type) continue;
+    if (!vendor_matches(info.vendor, row.vendor)) continue;
+    if (info.preferred_vector_width_float < row.min_vector_width) continue;
+    KernelChoice c;
+    c.variant = row.variant;
+    c.blocking = row.blocking;
+    c.workgroup = row.workgroup;
+    c.tuned = row.tuned;
+    c.source = std::string("table: ") + row.name;
+    return c;
+  }
+  throw Error("FullyFusedMLP: the kernel table has no row for " + info.description());  // the last row matches all
+}
+
+FullyFusedMLP::KernelChoice FullyFusedMLP::default_kernels(const DeviceInfo& info) {
+  KernelChoice c = device_default(info);
+  const char* env = std::getenv("RELIT_MLP_VARIANT");
+  const std::string v = env ? lower(env) : "";
+  if (v.empty() || v == "auto") return c;
+  if (v != "simd" && v != "workgroup")
+    throw InvalidArgument("RELIT_MLP_VARIANT must be simd, workgroup or auto, got '" + std::string(env) + "'");
+  const Variant want = v == "simd" ? Variant::Simd : Variant::WorkGroup;
+  if (want != c.variant) c.tuned = false;  // a row's tuning is for its own variant
+  c.variant = want;
+  c.source = "RELIT_MLP_VARIANT";
+  return c;
+}
+
+FullyFusedMLP::Blocking FullyFusedMLP::default_blocking(const DeviceInfo& info) {
+  return device_default(info).blocking;
+}
+
+}  // namespace relit::nn
