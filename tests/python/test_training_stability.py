@@ -46,8 +46,10 @@ def smoothed(losses):
     return np.convolve(losses, np.ones(WINDOW) / WINDOW, "valid")
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason="known: the shadow runaway of single scattering on a dense medium "
-                                       "(docs/baselines.md, Training stability); remove this mark once it is fixed")
+KNOWN = "the shadow runaway of single scattering on a dense medium (docs/baselines.md, Training stability)"
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason="known: " + KNOWN + "; remove the mark once fixed")
 def test_single_scattering_training_does_not_run_away(dense_cloud, device):
     trainer = relit.Trainer(dense_cloud, config=single_scattering_config(), device=device)
     losses = np.array([s.loss for s in trainer.run(STEPS, 10)])
