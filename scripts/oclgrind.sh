@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Every kernel test of relit on Oclgrind, the OpenCL device simulator (docs/reliability.md, "Work-group
 # semantics: Oclgrind"): CI runs a two-minute subset (ctest -L oclgrind); this runs all of them, the wider MLPs,
-# the path tracer's statistical tests and a hash-grid fit included (about 20 minutes on 2 cores).
+# the path tracer's statistical tests and a hash-grid fit included (more than 45 minutes on 2 cores).
 #
 #   scripts/oclgrind.sh                    # data races, out-of-bounds accesses, barrier divergence, API errors
 #   scripts/oclgrind.sh --uninitialized    # also Oclgrind's uninitialised-value check (see the docs first)
