@@ -47,6 +47,18 @@ inline float3 flip_aces(float3 x) {
 // across work-items); what lands in the padding is never read back into the error.
 #define FLIP_CHUNK 16
 
+// Seven planes' FLIP_CHUNK pixels at out, out + m, ..., out + 6 m (flip_rows and flip_columns write alike).
+inline void flip_store7(__global float* out, const size_t m, float16 a, float16 b, float16 c, float16 d, float16 e,
+                        float16 f, float16 g) {
+  vstore16(a, 0, out);
+  vstore16(b, 0, out + m);
+  vstore16(c, 0, out + 2 * m);
+  vstore16(d, 0, out + 3 * m);
+  vstore16(e, 0, out + 4 * m);
+  vstore16(f, 0, out + 5 * m);
+  vstore16(g, 0, out + 6 * m);
+}
+
 // ycc: the YCxCz of the tone-mapped pixels, plane 3 i + c (i: 0 the test image a, 1 the reference b; c: Y, Cx, Cz)
 // with rows of span = pitch + 2 radius floats: entry j of row y is pixel x = j - radius, clamped to the image, so
 // that flip_rows reads past the edges without tests. Work-items (span, height). hdr != 0: ACES(scale * rgb) (scale
@@ -101,14 +113,7 @@ __kernel void flip_rows(const uint height, const uint pitch, const int radius, _
       s5 = fma(t.s5, grey, s5);
       s6 = fma(t.s6, grey, s6);
     }
-    __global float* r = rows + 7 * i * m + y * pitch + x0;
-    vstore16(s0, 0, r);
-    vstore16(s1, 0, r + m);
-    vstore16(s2, 0, r + 2 * m);
-    vstore16(s3, 0, r + 3 * m);
-    vstore16(s4, 0, r + 4 * m);
-    vstore16(s5, 0, r + 5 * m);
-    vstore16(s6, 0, r + 6 * m);
+    flip_store7(rows + 7 * i * m + y * pitch + x0, m, s0, s1, s2, s3, s4, s5, s6);
   }
 }
 
@@ -135,14 +140,7 @@ __kernel void flip_columns(const uint height, const uint pitch, const int radius
       ddx = fma(t.s4, vload16(0, r + 6 * m + q), ddx);
       ddy = fma(t.s6, g, ddy);
     }
-    __global float* out = columns + 7 * i * m + y * pitch + x0;
-    vstore16(c0, 0, out);
-    vstore16(c1, 0, out + m);
-    vstore16(c2, 0, out + 2 * m);
-    vstore16(dx, 0, out + 3 * m);
-    vstore16(dy, 0, out + 4 * m);
-    vstore16(ddx, 0, out + 5 * m);
-    vstore16(ddy, 0, out + 6 * m);
+    flip_store7(columns + 7 * i * m + y * pitch + x0, m, c0, c1, c2, dx, dy, ddx, ddy);
   }
 }
 
