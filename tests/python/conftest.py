@@ -21,3 +21,12 @@ def run_python(code_or_args, env_extra=None, **kwargs):
     env.update(env_extra or {})
     args = [sys.executable] + (["-c", code_or_args] if isinstance(code_or_args, str) else list(code_or_args))
     return subprocess.run(args, env=env, capture_output=True, text=True, timeout=300, **kwargs)
+
+
+def cloud_dataset(tmp_path_factory, device, name, scene_seed, scene_resolution, **settings):
+    """A small path-traced dataset of the built-in cloud in a fresh temporary folder: its path. `settings` go to
+    relit.generate_dataset (resolution, train, val, test, spp, seed, ...)."""
+    out = str(tmp_path_factory.mktemp(name) / "cloud")
+    scene = relit.Scene.builtin("cloud", seed=scene_seed, resolution=scene_resolution)
+    relit.generate_dataset(scene, out, device=device, **settings)
+    return out

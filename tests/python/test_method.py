@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import relit
-from conftest import run_python
+from conftest import cloud_dataset, run_python
 
 
 def png_size(path):
@@ -33,10 +33,7 @@ CONFIG = {
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory, device):
-    out = str(tmp_path_factory.mktemp("method") / "ds")
-    scene = relit.Scene.builtin("cloud", seed=1, resolution=16)
-    relit.generate_dataset(scene, out, resolution=12, train=4, val=1, test=1, spp=2, seed=3, device=device)
-    return out
+    return cloud_dataset(tmp_path_factory, device, "method", 1, 16, resolution=12, train=4, val=1, test=1, spp=2, seed=3)
 
 
 def test_trainer_yields_stats_and_the_model_renders(dataset, device, tmp_path):

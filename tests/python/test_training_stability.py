@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import relit
+from conftest import cloud_dataset
 
 HASH = {"type": "HashGrid", "n_levels": 6, "n_features_per_level": 2, "log2_hashmap_size": 14,
         "base_resolution": 4, "per_level_scale": 1.5}
@@ -21,10 +22,8 @@ STEPS, CHECKPOINT_STEP, WINDOW = 600, 100, 5  # the loss is logged every 10 step
 
 @pytest.fixture(scope="module")
 def dense_cloud(tmp_path_factory, device):
-    out = str(tmp_path_factory.mktemp("stability") / "cloud")
-    scene = relit.Scene.builtin("cloud", seed=0, resolution=32)
-    relit.generate_dataset(scene, out, resolution=24, train=12, val=1, test=1, spp=8, seed=3, device=device)
-    return out
+    return cloud_dataset(tmp_path_factory, device, "stability", 0, 32, resolution=24, train=12, val=1, test=1, spp=8,
+                         seed=3)
 
 
 def single_scattering_config():
