@@ -3,6 +3,8 @@
 // NaN/Inf guard of a training step.
 //
 // Ray records and the tiled layout (TILED_AT: element (s, f) of a matrix with `cols` columns): layout.clh.
+#include "common.clh"
+#include "geometry.clh"
 #include "layout.clh"
 
 // For sample s of ray s / samples_per_ray at world position x in [-1, 1]^3 (positions: n x 3):
@@ -100,4 +102,43 @@ __kernel void env_columns_to_rows(const uint n, const uint n_env, __global const
   const uint r = get_global_id(0);
   if (r >= n * n_env) return;
   dst[row0 + r] = src[TILED_AT(n_env, r / n_env, r % n_env)];
+}
+
+// The shadow gradient (MediumModel::add_shadow_gradient, docs/baselines.md): sample s's V toward the point light
+// is exp(-∫ σ dl) over the part of its shadow ray, from x_s toward p_l, that lies in the box, so the render
+// loss's dL/dV_s (column 5 of d_props) gives dL/dσ(y) = -dL/dV_s V_s at every point y of that segment, of length
+// len_s. `points` points y_sj at uniform random distances on it (counter-based: seed, the global sample index,
+// j) estimate the line integral: row q = s points + j of `out` (net positions, [0, 1]^3) is y_sj, and row q of
+// `d_out` (the property net's outputs, `cols` columns) is -dL/dV_s V_s len_s scale / points in column 0 (σ),
+// zero elsewhere. Rows n .. padded are padding: centre position, zero gradient. One work-item per row.
+__kernel void shadow_points(const uint n, const uint padded, const uint samples_per_ray, const uint points,
+                            const uint seed, const uint ray_first, const uint ray_stride, const float scale,
+                            __global const float* restrict rays, __global const float* restrict positions,
+                            __global const float* restrict props, const uint prop_cols,
+                            __global const float* restrict d_props, __global float* restrict out,
+                            __global float* restrict d_out, const uint cols) {
+  const uint q = get_global_id(0);
+  if (q >= padded) return;
+  float3 y = (float3)(0.0f);
+  float grad = 0.0f;
+  if (q < n) {
+    const uint s = q / points, j = q % points;
+    const uint ray = s / samples_per_ray;
+    const float3 x = tiled3(positions, 3, s, 0);
+    const float3 to_light = ray_light_position(RAY_RECORD(rays, ray)) - x;
+    const float dist = length(to_light);
+    const float3 w = to_light / dist;
+    float t0, t1, start = 0.0f, len = 0.0f;
+    if (box_intersect(x, w, &t0, &t1)) {
+      start = fmax(t0, 0.0f);
+      len = fmax(fmin(t1, dist) - start, 0.0f);
+    }
+    const uint global_sample = (ray_first + ray_stride * ray) * samples_per_ray + s % samples_per_ray;
+    const float u = relit_uniform(relit_hash2(relit_hash2(seed, global_sample), j));
+    y = fma((float3)(fma(u, len, start)), w, x);
+    grad = -TILED(d_props, prop_cols, s, 5) * TILED(props, prop_cols, s, 5) * len * (scale / points);
+  }
+  store_tiled3(out, 3, q, 0, fma(y, 0.5f, 0.5f));
+  d_out[TILED_AT(cols, q, 0)] = grad;
+  for (uint f = 1; f < cols; ++f) d_out[TILED_AT(cols, q, f)] = 0.0f;
 }

@@ -47,6 +47,11 @@
 #ifndef SCATTERING_BRDF
 #define SCATTERING_BRDF 0
 #endif
+// VISIBILITY_GRADIENT = 1: the backward passes write dL/dV toward the point light into column 5 (the shadow
+// gradient of the baselines, docs/baselines.md); 0: zero there, the gradient isolation of appendix C.
+#ifndef VISIBILITY_GRADIENT
+#define VISIBILITY_GRADIENT 0
+#endif
 #define ENV_COL (6 + 3 * N_SH)
 #define NORMAL_COL (ENV_COL + N_ENV)
 #define PROP_COLS (NORMAL_COL + 3 * SCATTERING_BRDF)
@@ -155,6 +160,7 @@ typedef struct {
   float16 g, vis;
   float16 mu_l;    // w_o . w_l per sample
   float16 direct;  // V I / r^2 without the colour: multiplies intensity.rgb
+  float16 inv_r2;  // 1 / r^2
   float3 intensity;
 } TileLight;
 
@@ -176,7 +182,8 @@ inline TileLight tile_light(__global const float* ray, __global const float* t, 
   L.mu_l = (L.wo.x * lx + L.wo.y * ly + L.wo.z * lz) * inv_r;
   L.g = tile_load(props, tile, PROP_COLS, 4);
   L.vis = tile_load(props, tile, PROP_COLS, 5);
-  L.direct = L.vis / r2;
+  L.inv_r2 = 1.0f / r2;
+  L.direct = L.vis * L.inv_r2;
   return L;
 }
 
@@ -232,7 +239,8 @@ __kernel void render_radiance(const uint n_tiles, __global const float* restrict
 
 // Given dL/d(radiance): dL/d(albedo), dL/dg and dL/d(SH coefficients) into d_props (columns 1..4 and 6..);
 // sigma's column is written by the compositing backward, the visibility columns (point light and
-// environment) get zero: the render loss must not reach the visibility network (gradient isolation).
+// environment) get zero: the render loss must not reach the visibility network (gradient isolation); with
+// VISIBILITY_GRADIENT the point light's column gets dL/dV (for the shadow gradient, not for the network).
 __kernel void render_radiance_backward(const uint n_tiles, __global const float* restrict rays,
                                        __global const float* restrict t, __global const float* restrict props,
                                        __global const float* restrict dirs, __global const float* restrict sh_basis,
@@ -324,7 +332,14 @@ __kernel void render_radiance_backward(const uint n_tiles, __global const float*
   tile_store(d_props, tile, PROP_COLS, 2, dg * s_g);
   tile_store(d_props, tile, PROP_COLS, 3, db * s_b);
   tile_store(d_props, tile, PROP_COLS, 4, d_g);
+#if VISIBILITY_GRADIENT
+  // dS_dir/dV = p(w_o, w_l) I / r^2 per channel.
+  const float16 d_vis =
+      hg_phase16(L.g, L.mu_l) * L.inv_r2 * (er * L.intensity.x + eg * L.intensity.y + eb * L.intensity.z);
+  tile_store(d_props, tile, PROP_COLS, 5, d_vis);
+#else
   tile_store(d_props, tile, PROP_COLS, 5, (float16)(0.0f));
+#endif
 }
 
 // ---- per-sample radiance, scattering "brdf" (solids, docs/design.md §4.4) -------------------------------------------
@@ -342,6 +357,7 @@ typedef struct {
   BrdfView brdf;  // unit normal n, w_o, roughness and what the BRDF derives from them once per sample
   float3 wl, albedo;
   float3 direct;  // V I / |p_l - x|^2
+  float3 light;   // I / |p_l - x|^2: d(direct)/dV
   float inv_len;  // 1 / |n_raw| (0 for a zero normal, which scatters nothing)
 } SurfacePoint;
 
@@ -353,7 +369,8 @@ inline SurfacePoint surface_point(__global const float* ray, __global const floa
   const float3 to_light = ray_light_position(ray) - fma((float3)(t[s]), d, o);
   const float r2 = dot(to_light, to_light);
   p.wl = to_light * rsqrt(r2);
-  p.direct = ray_light_intensity(ray) * (TILED(props, PROP_COLS, s, 5) / r2);
+  p.light = ray_light_intensity(ray) / r2;
+  p.direct = p.light * TILED(props, PROP_COLS, s, 5);
   const float3 m = tiled3(props, PROP_COLS, s, NORMAL_COL);
   const float len2 = dot(m, m);
   p.inv_len = len2 > 0.0f ? rsqrt(len2) : 0.0f;
@@ -434,7 +451,8 @@ inline float3 brdf_term_backward(const SurfacePoint* p, float3 w, float3 L, floa
 }
 
 // Given dL/d(radiance): dL/d(albedo), dL/dr, dL/d(SH coefficients) and dL/d(n_raw) into d_props; sigma's
-// column is written by the compositing backward; every visibility column gets zero (gradient isolation).
+// column is written by the compositing backward; every visibility column gets zero (gradient isolation), but
+// the point light's gets dL/dV with VISIBILITY_GRADIENT.
 __kernel void render_radiance_brdf_backward(
     const uint n, __global const float* restrict rays, __global const float* restrict t,
     __global const float* restrict props, __global const float* restrict dirs, __global const float* restrict sh_basis,
@@ -446,7 +464,7 @@ __kernel void render_radiance_brdf_backward(
   const float3 e = tiled3(d_radiance, 3, s, 0);
   float3 diffuse = 0.0f, d_n = 0.0f;
   float d_r = 0.0f;
-  brdf_term_backward(&p, p.wl, p.direct, e, &diffuse, &d_r, &d_n);
+  const float3 d_direct = brdf_term_backward(&p, p.wl, p.direct, e, &diffuse, &d_r, &d_n);
 #if N_ENV > 0
   for (uint j = 0; j < N_ENV; ++j) {
     const float3 L = TILED(props, PROP_COLS, s, ENV_COL + j) * tiled_dir(env_weights, j);
@@ -482,7 +500,7 @@ __kernel void render_radiance_brdf_backward(
   const float3 d_albedo = e * diffuse;
   store_tiled3(d_props, PROP_COLS, s, 1, d_albedo);
   TILED(d_props, PROP_COLS, s, 4) = d_r;
-  TILED(d_props, PROP_COLS, s, 5) = 0.0f;
+  TILED(d_props, PROP_COLS, s, 5) = VISIBILITY_GRADIENT ? dot(d_direct, p.light) : 0.0f;
   // Through n = n_raw / |n_raw|: (I - n n^T) / |n_raw|.
   const float3 d_m = (d_n - p.brdf.n * dot(p.brdf.n, d_n)) * p.inv_len;
   store_tiled3(d_props, PROP_COLS, s, NORMAL_COL, d_m);

@@ -33,8 +33,10 @@ struct DeviceRun {
 };
 
 DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::vector<float>& d_color,
-                     bool closed_form = false, const render::EnvironmentSamples* env = nullptr) {
-  VolumeRenderer renderer(dev, {s.n_samples, lmax, s.n_dirs, closed_form, s.n_env, s.brdf ? "brdf" : "phase"});
+                     bool closed_form = false, const render::EnvironmentSamples* env = nullptr,
+                     bool visibility_gradient = false) {
+  VolumeRenderer renderer(
+      dev, {s.n_samples, lmax, s.n_dirs, closed_form, s.n_env, s.brdf ? "brdf" : "phase", visibility_gradient});
   const std::uint32_t n = s.n_rays * s.n_samples;
   Buffer<float> rays(dev, s.rays), t(dev, n), delta(dev, n), color(dev, 3 * s.n_rays), trans(dev, s.n_rays),
       dcol(dev, d_color);
@@ -78,12 +80,13 @@ std::vector<float> random_weights(std::size_t n, unsigned seed) {
 }
 
 // Checks the device's dL/dproperties against central differences of the double reference, on every
-// `stride`-th sample; every visibility column (point light and environment) must get exactly zero gradient.
+// `stride`-th sample; every visibility column (point light and environment) must get exactly zero gradient,
+// but with `visibility_gradient` the point light's is checked against the differences as well.
 // In scattering "brdf" that covers albedo, roughness, SH coefficients, sigma and the raw normal.
 // Returns the number of values checked.
 int expect_gradients_match_finite_differences(const RayScene& s, const std::vector<float>& w,
-                                              const std::vector<float>& d_props, bool closed_form,
-                                              std::uint32_t stride) {
+                                              const std::vector<float>& d_props, bool closed_form, std::uint32_t stride,
+                                              bool visibility_gradient = false) {
   auto loss = [&](const std::vector<double>& props) {
     const auto c = reference_color(s, props, closed_form);
     double l = 0;
@@ -98,7 +101,7 @@ int expect_gradients_match_finite_differences(const RayScene& s, const std::vect
       auto plus = s.props, minus = s.props;
       plus[smp * cols + f] += h;
       minus[smp * cols + f] -= h;
-      if (f == render::kVisibility || (f >= s.env_col() && f < s.normal_col())) {
+      if ((f == render::kVisibility && !visibility_gradient) || (f >= s.env_col() && f < s.normal_col())) {
         EXPECT_EQ(d_props[smp * cols + f], 0.0f) << "sample " << smp << " visibility column " << f;
       } else {
         const double fd = (loss(plus) - loss(minus)) / (2 * h);
@@ -127,6 +130,21 @@ TEST(VolumeRenderer, BackwardMatchesFiniteDifferencesOfTheReference) {
   const auto w = random_weights(3 * s.n_rays, 3);
   const auto got = run_device(test::test_device(), s, lmax, w);
   EXPECT_GT(expect_gradients_match_finite_differences(s, w, got.d_props, false, 5), 100);
+}
+
+// The shadow gradient's input (docs/baselines.md): dL/dV toward the point light, in both scattering models;
+// the environment's columns stay zero.
+TEST(VolumeRenderer, VisibilityGradientMatchesFiniteDifferences) {
+  for (const bool brdf : {false, true}) {
+    const int lmax = 1;
+    const RayScene s = random_scene(3, 16, lmax, 8, 17, 0, brdf);
+    const auto w = random_weights(3 * s.n_rays, 4);
+    const auto got = run_device(test::test_device(), s, lmax, w, false, nullptr, true);
+    EXPECT_GT(expect_gradients_match_finite_differences(s, w, got.d_props, false, 5, true), 100) << brdf;
+    double norm = 0;
+    for (std::uint32_t i = 0; i < s.n_rays * s.n_samples; ++i) norm += std::abs(got.d_props[i * s.cols() + 5]);
+    EXPECT_GT(norm, 1e-3) << "dL/dV is zero everywhere (brdf " << brdf << ")";
+  }
 }
 
 TEST(VolumeRenderer, ClosedFormIndirectMatchesReferenceAndFiniteDifferences) {

@@ -5,9 +5,10 @@ gradient, isolated from the visibility (the paper's appendix C), does not see th
 samples behind it. The visibility follows the density, the image darkens, and the loss asks for more.
 
 The run is Ours without indirect light (`sh: none`): the same single-scattering image as Bi et al. and the
-direct part of NeRV, and the cheapest of them (about 10-30 s). Measured on this dataset: the loss falls to 0.048
-by step 200 and is 0.117 over the last 60 steps (mean σ 16.7 per unit); with V = 1 everywhere (no shadows, a
-kernel patched for the experiment) it falls to 0.007 (mean σ 2.7)."""
+direct part of NeRV, and the cheapest of them (about 5-15 s per run). With V isolated it runs away (a strict
+expected failure: it shows the test can fail); with the shadow gradient (model/shadow_gradient), which passes the
+render loss's dL/dV on to the density along the shadow rays, it does not on this tiny cloud (on the 64x64 cloud
+it does not help: docs/baselines.md)."""
 import numpy as np
 import pytest
 
@@ -48,9 +49,14 @@ def smoothed(losses):
 KNOWN = "the shadow runaway of single scattering on a dense medium (docs/baselines.md, Training stability)"
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason="known: " + KNOWN + "; remove the mark once fixed")
-def test_single_scattering_training_does_not_run_away(dense_cloud, device):
-    trainer = relit.Trainer(dense_cloud, config=single_scattering_config(), device=device)
+@pytest.mark.parametrize("shadow_gradient", [
+    pytest.param(False, marks=pytest.mark.xfail(strict=True, raises=AssertionError,
+                                                reason="known: " + KNOWN + " with V isolated from the render loss")),
+    True])
+def test_single_scattering_training_does_not_run_away(dense_cloud, device, shadow_gradient):
+    config = single_scattering_config()
+    config["model"]["shadow_gradient"] = {"enabled": shadow_gradient}
+    trainer = relit.Trainer(dense_cloud, config=config, device=device)
     losses = np.array([s.loss for s in trainer.run(STEPS, 10)])
     assert np.isfinite(losses).all()
     at_checkpoint = smoothed(losses)[CHECKPOINT_STEP // 10 - 1]
@@ -58,5 +64,8 @@ def test_single_scattering_training_does_not_run_away(dense_cloud, device):
     sigma = relit.sample_medium(trainer.model, 32)["sigma"].mean()
     print("loss at step %d %.4f, over the last 10%% %.4f, mean sigma %.2f" % (CHECKPOINT_STEP, at_checkpoint, last,
                                                                              sigma))
-    # A run that trains keeps falling: the end is at most half of the loss at step 100.
-    assert last <= 0.5 * at_checkpoint
+    # A run that trains holds what it reached: the end is below three quarters of the loss at step 100 (the
+    # runaway ends above it) and the density stays bounded. Measured, with the shadow gradient: 0.040 against
+    # 0.081, mean sigma 2.8; with V isolated: 0.092 against 0.081, mean sigma 16.8.
+    assert last <= 0.75 * at_checkpoint
+    assert sigma < 8.0

@@ -37,7 +37,8 @@ std::uint32_t NeuralReflectanceField::queries_per_ray() const {
 void NeuralReflectanceField::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays,
                                     const PassOptions& o) const {
   BiPass& pass = bi_pass(base);
-  pass.share = pass.coarse.share = o.share;
+  begin_pass(pass, o);
+  begin_pass(pass.coarse, o);
   draw_basis(pass, o);
   const Branch coarse = coarse_branch(), fine = fine_branch();
   forward_branch(pass.coarse, coarse, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(),

@@ -308,6 +308,34 @@ void MediumModel::backward_branch(MediumPass& pass, const Branch& branch, const 
   branch.property->backward(m_device, {&m_params, branch.theta_offset}, pass.net_pos, pass.props_raw, pass.d_props_raw,
                             {&m_grads, branch.theta_offset}, false, nullptr, *pass.ws_property);
   mark(timer, "property net backward");
+  if (m_settings.shadow_gradient.enabled) add_shadow_gradient(pass, rays, timer);
+}
+
+void MediumModel::add_shadow_gradient(MediumPass& pass, const Buffer<float>& rays, StageTimer* timer) {
+  const ShadowGradientSettings& g = m_settings.shadow_gradient;
+  const std::uint32_t spr = pass.n_samples;
+  const detail::Subset subset = detail::visibility_subset(pass.n_rays, g.fraction, pass.share, pass.batch_rays);
+  if (subset.local == 0) return;  // this rank holds none of the global batch's first rays
+  // The first rays of the pass are its share of the global batch's first subset.global rays: their gradient is
+  // scaled by batch / subset, so that it estimates the whole batch's.
+  const double batch = pass.batch_rays ? pass.batch_rays : pass.n_rays;
+  const float scale = float(batch / subset.global);
+  const std::uint32_t rows = subset.local * spr * g.points;
+  const std::uint32_t cols = prop_heads() + m_settings.n_features;
+  nn::ensure_rows(pass.shadow_pos, m_device, rows, 3);
+  nn::ensure_rows(pass.shadow_props, m_device, rows, cols);
+  nn::ensure_rows(pass.d_shadow, m_device, rows, cols);
+  if (!pass.ws_shadow) pass.ws_shadow = m_property->make_workspace(m_device);
+  m_device.kernel("method.cl", "shadow_points")
+      .args(rows, pass.d_shadow.padded(), spr, g.points, pass.shadow_seed, pass.share.first, pass.share.stride, scale,
+            rays, pass.positions.data(), pass.props.data(), pass.props.cols(), pass.d_props.data(),
+            pass.shadow_pos.data(), pass.d_shadow.data(), cols)
+      .launch(pass.d_shadow.padded(), 64);
+  const nn::ConstParamSlice theta{&m_params, 0};
+  m_property->forward(m_device, theta, pass.shadow_pos, pass.shadow_props, *pass.ws_shadow);
+  m_property->backward(m_device, theta, pass.shadow_pos, pass.shadow_props, pass.d_shadow, {&m_grads, 0}, true, nullptr,
+                       *pass.ws_shadow);
+  mark(timer, "shadow gradient");
 }
 
 double MediumModel::visibility_step(MediumPass& pass, const Buffer<float>& rays, const nn::Loss& loss,
@@ -419,7 +447,7 @@ const MediumPass& medium_pass(const ModelPass& pass) { return medium_pass(const_
 
 void MediumModel::render(ModelPass& base, Buffer<float>& rays, std::uint32_t n_rays, const PassOptions& o) const {
   MediumPass& pass = medium_pass(base);
-  pass.share = o.share;
+  begin_pass(pass, o);
   draw_basis(pass, o);
   forward(pass, rays, n_rays, o.training, o.jitter_seed, pass.basis->dirs(), pass.basis->basis(), marches(o), o.timer,
           o.env);

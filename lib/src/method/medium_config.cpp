@@ -69,6 +69,7 @@ void MediumModel::configure(const Json& config, const std::string& pointer, conf
                                         "rays never reach opaque, so shadows do not leak");
   configure_density_grid(r, docs);
   configure_visibility_modes(r);
+  configure_shadow_gradient(r, docs);
   const Json env_network = configure_environment(r, docs);
   configure_property(r, docs);
   configure_indirect(r, docs);
@@ -150,6 +151,24 @@ void MediumModel::configure_visibility_modes(config::Reader& r) {
                                             "visibility of the training renders: the network (as the paper) or a march "
                                             "of the density grid (the visibility net still trains, for "
                                             "inference_visibility \"network\")");
+}
+
+// "shadow_gradient": the render loss's dL/dV passed on to the density along the shadow rays.
+void MediumModel::configure_shadow_gradient(config::Reader& r, config::Docs* docs) {
+  auto& g = m_settings.shadow_gradient;
+  SubConfig sub(r, "shadow_gradient", Json::object(),
+                "the render loss's gradient through the point light's shadow: dL/dV passed on to the density along "
+                "each sample's shadow ray (docs/baselines.md, \"Training stability\")",
+                docs);
+  g.enabled = sub.reader.boolean("enabled", false,
+                                 "pass dL/dV on to σ (off: V is a constant of the render loss, the isolation of "
+                                 "the paper's appendix C)");
+  g.points = sub.reader.uint("points", 1, 1, 64, "random points per sample on its shadow ray");
+  g.fraction = sub.reader.number("fraction", 0.25f, 1e-3f, 1.0f,
+                                 "share of each batch's rays whose samples pass the gradient on (scaled by its "
+                                 "inverse)");
+  m_settings.renderer.visibility_gradient = g.enabled;
+  sub.finish_into(r);
 }
 
 // "environment": S_env over N_e directions; with an SH head also the network of c_env (built by

@@ -35,10 +35,13 @@ VolumeRenderer::VolumeRenderer(const Device& device, const VolumeRendererSetting
     throw InvalidArgument("environment directions n_env_dirs must be in [0, 1024] (0: no environment light), got " +
                           std::to_string(settings.n_env_dirs));
   m_n_sh = settings.sh_lmax < 0 ? 0 : static_cast<std::uint32_t>((settings.sh_lmax + 1) * (settings.sh_lmax + 1));
-  m_defines = {
-      {"N_SAMPLES", std::to_string(settings.n_samples)}, {"N_SH", std::to_string(m_n_sh)},
-      {"N_DIRS", std::to_string(settings.n_dirs)},       {"INDIRECT_MODE", settings.closed_form_indirect ? "1" : "0"},
-      {"N_ENV", std::to_string(settings.n_env_dirs)},    {"SCATTERING_BRDF", m_brdf ? "1" : "0"}};
+  m_defines = {{"N_SAMPLES", std::to_string(settings.n_samples)},
+               {"N_SH", std::to_string(m_n_sh)},
+               {"N_DIRS", std::to_string(settings.n_dirs)},
+               {"INDIRECT_MODE", settings.closed_form_indirect ? "1" : "0"},
+               {"N_ENV", std::to_string(settings.n_env_dirs)},
+               {"SCATTERING_BRDF", m_brdf ? "1" : "0"},
+               {"VISIBILITY_GRADIENT", settings.visibility_gradient ? "1" : "0"}};
   if (m_n_sh) m_sh = nn::create_encoding({{"type", "SphericalHarmonics"}, {"degree", settings.sh_lmax + 1}}, 3);
 }
 

@@ -18,7 +18,8 @@
 // parameter buffers with their own optimisers. Gradients are isolated both ways (the paper's appendix C):
 // the render loss reaches θ only (the renderer gives no gradient to V), and the visibility loss — against the
 // transmittance of the learned density, marched through a cached density grid — reaches ψ only (the targets
-// are constants).
+// are constants). "model/shadow_gradient" (ShadowGradientSettings, off by default) lifts the first half of
+// the isolation: the render loss's dL/dV is passed on to the density along the shadow rays.
 #pragma once
 
 #include <relit/config.hpp>
@@ -68,6 +69,17 @@ struct Scattering {
   bool has_closed_form_indirect() const { return !is_brdf(); }
 };
 
+/// The shadow gradient (docs/baselines.md, "Training stability"): the render loss's dL/dV toward the point
+/// light, passed on to the density along each sample's shadow ray, dL/dσ(y) = -dL/dV V for y on the segment
+/// from the sample to the light inside the box. `points` uniform random points per sample estimate the line
+/// integral (counter-based, so deterministic); the samples of the first `fraction` of a batch's rays take
+/// part, their gradient scaled by 1 / fraction. Without it V is a constant of the render loss (appendix C).
+struct ShadowGradientSettings {
+  bool enabled = false;
+  std::uint32_t points = 1;  ///< points per sample on its shadow ray
+  float fraction = 0.25f;    ///< share of a batch's rays whose samples pass the gradient on
+};
+
 /// What a method is made of (a method's own parts, such as NeRV's bounce, are its class's).
 struct MethodParts {
   Scattering scattering;
@@ -101,6 +113,7 @@ struct MediumSettings {
   std::string inference_visibility = "network";  ///< "network" (as the paper) or "march" (density grid)
   std::string training_visibility = "network";   ///< V of the training renders: "network" (as the paper) or "march"
   EnvironmentSettings environment;
+  ShadowGradientSettings shadow_gradient;
 };
 
 /// Scratch matrices of one pass over a batch of rays; reused across iterations (no allocation once sized).
@@ -119,6 +132,11 @@ struct MediumPass : ModelPass {
       point_target;
   std::unique_ptr<nn::Workspace> ws_property, ws_indirect, ws_visibility, ws_env_visibility, ws_environment;
   std::unique_ptr<render::IndirectBasis> basis;  // the K directions of render(), drawn per iteration
+  // The shadow gradient: points on the shadow rays of the first rays' samples, the property net there, and
+  // dL/d(its outputs) (σ only); the global batch and the seed of the pass that drew them.
+  nn::BatchMatrix shadow_pos, shadow_props, d_shadow;
+  std::unique_ptr<nn::Workspace> ws_shadow;
+  std::uint32_t batch_rays = 0, shadow_seed = 0;
 };
 
 /// The model of a method: its MethodParts' networks and the passes that join them to the volume renderer.
@@ -218,13 +236,14 @@ class MediumModel : public Model {
 
   /// Reads the "model" object section by section, in this order; each part reads its own keys.
   void configure(const Json& config, const std::string& pointer, config::Docs* docs);
-  void configure_renderer(config::Reader& r, config::Docs* docs);      // "renderer"
-  void configure_indirect_keys(config::Reader& r);                     // the SH head's keys of "model" itself
-  void configure_density_grid(config::Reader& r, config::Docs* docs);  // "density_grid"
-  void configure_visibility_modes(config::Reader& r);                  // inference/training_visibility
-  Json configure_environment(config::Reader& r, config::Docs* docs);   // "environment"; gives c_env's network
-  void configure_property(config::Reader& r, config::Docs* docs);      // "property"
-  void configure_indirect(config::Reader& r, config::Docs* docs);      // "indirect"
+  void configure_renderer(config::Reader& r, config::Docs* docs);         // "renderer"
+  void configure_indirect_keys(config::Reader& r);                        // the SH head's keys of "model" itself
+  void configure_density_grid(config::Reader& r, config::Docs* docs);     // "density_grid"
+  void configure_visibility_modes(config::Reader& r);                     // inference/training_visibility
+  void configure_shadow_gradient(config::Reader& r, config::Docs* docs);  // "shadow_gradient"
+  Json configure_environment(config::Reader& r, config::Docs* docs);      // "environment"; gives c_env's network
+  void configure_property(config::Reader& r, config::Docs* docs);         // "property"
+  void configure_indirect(config::Reader& r, config::Docs* docs);         // "indirect"
   void configure_environment_head(config::Reader& r, const Json& network);
   void configure_coarse(config::Reader& r, config::Docs* docs);  // "coarse" (hierarchical sampling)
   /// A method's own sections of the "model" object (NeRV: "bounce"), read before the visibility net.
@@ -239,6 +258,12 @@ class MediumModel : public Model {
   }
   /// Draws the pass's K indirect directions (and their SH basis) of iteration o.iteration.
   void draw_basis(MediumPass& pass, const PassOptions& o) const;
+  /// Keeps what a pass's backward needs of its options: the share, the global batch, the seed.
+  static void begin_pass(MediumPass& pass, const PassOptions& o) {
+    pass.share = o.share;
+    pass.batch_rays = o.batch_rays;
+    pass.shadow_seed = o.jitter_seed ^ 0x2545f491u;
+  }
   /// The property net's outputs before the features (the scattering part's heads).
   std::uint32_t prop_heads() const { return m_parts.scattering.n_heads(); }
   /// A property network with its θ offset and samples per ray (hierarchical sampling: a coarse and a fine one).
@@ -268,6 +293,10 @@ class MediumModel : public Model {
                                       const Buffer<float>& d_color) {
     (void)pass, (void)branch, (void)rays, (void)d_color;
   }
+  /// The shadow gradient of the pass's dL/dV (column kVisibility of d_props) into the property net's part of
+  /// grads() (adding). The density behind V is the property net's (the grid is refreshed from it), whichever
+  /// branch rendered.
+  void add_shadow_gradient(MediumPass& pass, const Buffer<float>& rays, StageTimer* timer);
   /// θ of the property net, the SH head and the environment head (the coarse net follows).
   std::uint32_t own_params() const;
 

@@ -9,7 +9,8 @@
 //               BRDF-weighted light of a solid's surface (scattering "brdf", docs/design.md §4.4) → composited colour
 //               and transmittance
 //   backward(): dL/dcolour → dL/dproperties (sigma, albedo, g or roughness, SH coefficients, the raw normal;
-//               zero for every visibility column, whose network the render loss must not reach)
+//               zero for every visibility column, whose network the render loss must not reach, unless
+//               visibility_gradient asks for dL/dV toward the point light)
 //
 // Ray records are kRayFloats floats: origin, t_near, direction (unit), t_far, light position, light RGB
 // intensity [W/sr], background radiance, at the offsets RayField names (both declared in kernels/layout.clh,
@@ -64,6 +65,10 @@ struct VolumeRendererSettings {
   /// renderer normalises; each light term is f(w_o, w_i) max(0, n.w_i) times its incident light with f
   /// the BRDF of kernels/brdf.clh, the path tracer's). "brdf" has no closed-form indirect light.
   std::string scattering = "phase";
+  /// backward() writes dL/dV toward the point light into column kVisibility instead of zero. The method
+  /// decides what to do with it (the shadow gradient, relit/method/medium.hpp); the renderer still
+  /// gives zero to the environment's visibility columns.
+  bool visibility_gradient = false;
 };
 
 class VolumeRenderer {
