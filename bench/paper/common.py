@@ -67,6 +67,10 @@ SCALES = {
     # The numbers of docs/results.md: a 2-core CPU in about an hour per experiment.
     "laptop": {"resolution": 64, "scene_resolution": 64, "train": 60, "val": 4, "test": 20, "spp": 64, "test_spp": 256,
                "generalization_views": 10, "steps": 2000, "batch_rays": 1200, "preset": "fast", "model": {}},
+    # The method comparison's protocol on a CPU (docs/results.md): the paper's image size, 3000 steps.
+    "laptop128": {"resolution": 128, "scene_resolution": 64, "train": 100, "val": 4, "test": 20, "spp": 64,
+                  "test_spp": 256, "generalization_views": 10, "steps": 3000, "batch_rays": 1200, "preset": "fast",
+                  "model": {}},
     # The protocol of the paper (Zheng, Singh, Seidel, NeurIPS 2021) on a GPU: 128x128, 100 training views, the
     # paper-sized networks.
     "gpu": {"resolution": 128, "scene_resolution": 64, "train": 100, "val": 20, "test": 50, "spp": 64,
@@ -121,11 +125,16 @@ class Relit:
 
     def dataset(self, name, scene="cloud", lighting="point", generalization=False, intensity=None,
                 light_distance=None):
-        """Generates OUT/../data/<name>-<scale> unless it is complete (its transforms_test.json exists)."""
+        """Generates OUT/../data/<name>-<scale> unless it is complete (its transforms_test.json exists). `scene` is
+        a built-in name or a scene as a dict (written beside the dataset as <name>-<scale>.scene.json)."""
         s = self.scale
         path = os.path.join(self.data_root, "%s-%s" % (name, self.scale_name))
         if os.path.exists(os.path.join(path, "transforms_test.json")):
             return path
+        if isinstance(scene, dict):
+            scene_path = path + ".scene.json"
+            write_json(scene_path, scene)
+            scene = scene_path
         args = ["generate", "--scene", scene, "--lighting", lighting, "--out", path, "--seed", self.seed,
                 "--resolution", s["resolution"], "--scene-resolution", s["scene_resolution"], "--train", s["train"],
                 "--val", s["val"], "--test", s["test"], "--spp", s["spp"], "--test-spp", s["test_spp"], "--overwrite"]
@@ -279,8 +288,42 @@ def fmt(v):
 
 
 def split_means(metrics, split):
+    """PSNR and SSIM of a split over the whole image (the paper's protocol)."""
     s = metrics["splits"][split]
     return s["psnr"], s["ssim"]
+
+
+def object_means(metrics, split):
+    """The object's protocol of a split (docs/evaluation.md): a dict of psnr, ssim, rel_mse, flip, clipped (None
+    where missing)."""
+    o = metrics["splits"][split].get("object", {})
+    return {k: o.get(k) for k in ("psnr", "ssim", "rel_mse", "flip", "clipped")}
+
+
+def logged_losses(run):
+    """[(step, render loss)] of RUN/log.jsonl."""
+    out = []
+    with open(os.path.join(run, "log.jsonl")) as f:
+        for line in f:
+            line = line.strip()
+            if line:
+                e = json.loads(line)
+                out.append((e["step"], e["loss"]))
+    return out
+
+
+def convergence(run, early=200):
+    """Did the run's loss keep falling? The smoothed loss over the last 10 % of the steps against the smoothed
+    loss around step `early` (the mean of the logged losses in [early - 50, early + 50]); `converged` when the end
+    is at most half of it (issue target: no runaway), None when the run is too short to tell (under 2 x early)."""
+    losses = logged_losses(run)
+    if not losses or losses[-1][0] < 2 * early:
+        return {"early": None, "last": None, "ratio": None, "converged": None}
+    last_step = losses[-1][0]
+    near = [l for s, l in losses if abs(s - early) <= 50]
+    tail = [l for s, l in losses if s > 0.9 * last_step]
+    e, t = sum(near) / len(near), sum(tail) / len(tail)
+    return {"early": e, "last": t, "ratio": t / e if e > 0 else None, "converged": bool(t <= 0.5 * e)}
 
 
 def plot(path, title, xlabel, series, xticks=None, ylabel="PSNR [dB]"):

@@ -27,24 +27,32 @@ def main():
     run = r.train("distance", data, r.config())
     m = r.evaluate(run, splits=["test_distance_%d" % d for d in DISTANCES])
     dist = {d: common.split_means(m, "test_distance_%d" % d) for d in DISTANCES}
+    dist_obj = {d: common.object_means(m, "test_distance_%d" % d) for d in DISTANCES}
     results["distance"] = {"dataset": data, "run": run, "train_range": [3, 5],
                            "psnr": {str(d): v[0] for d, v in dist.items()},
-                           "ssim": {str(d): v[1] for d, v in dist.items()}}
+                           "ssim": {str(d): v[1] for d, v in dist.items()},
+                           "object": {str(d): v for d, v in dist_obj.items()}}
     tables.append(["## Light distance (trained in (3, 5))", ""] + common.markdown_table(
         ["", *("d = %d" % d for d in DISTANCES)],
-        [["PSNR [dB]", *(dist[d][0] for d in DISTANCES)], ["SSIM", *(dist[d][1] for d in DISTANCES)]]))
+        [["PSNR [dB]", *(dist[d][0] for d in DISTANCES)], ["SSIM", *(dist[d][1] for d in DISTANCES)],
+         ["object PSNR [dB]", *(dist_obj[d]["psnr"] for d in DISTANCES)],
+         ["object FLIP", *(dist_obj[d]["flip"] for d in DISTANCES)]]))
     # Light intensity: train on intensities in [50, 900].
     data = r.dataset("cloud-point-intensity", scene="cloud", lighting="point", generalization=True,
                      intensity=(50, 900))
     run = r.train("intensity", data, r.config())
     m = r.evaluate(run, splits=["test_intensity_%d" % i for i in INTENSITIES])
     inten = {i: common.split_means(m, "test_intensity_%d" % i) for i in INTENSITIES}
+    inten_obj = {i: common.object_means(m, "test_intensity_%d" % i) for i in INTENSITIES}
     results["intensity"] = {"dataset": data, "run": run, "train_range": [50, 900],
                             "psnr": {str(i): v[0] for i, v in inten.items()},
-                            "ssim": {str(i): v[1] for i, v in inten.items()}}
+                            "ssim": {str(i): v[1] for i, v in inten.items()},
+                            "object": {str(i): v for i, v in inten_obj.items()}}
     tables.append(["## Light intensity (trained in [50, 900])", ""] + common.markdown_table(
         ["", *("I = %d" % i for i in INTENSITIES)],
-        [["PSNR [dB]", *(inten[i][0] for i in INTENSITIES)], ["SSIM", *(inten[i][1] for i in INTENSITIES)]]))
+        [["PSNR [dB]", *(inten[i][0] for i in INTENSITIES)], ["SSIM", *(inten[i][1] for i in INTENSITIES)],
+         ["object PSNR [dB]", *(inten_obj[i]["psnr"] for i in INTENSITIES)],
+         ["object FLIP", *(inten_obj[i]["flip"] for i in INTENSITIES)]]))
     common.plot(os.path.join(args.out, "distance.png"), "Light distance (trained in (3, 5))", "light distance",
                 {"PSNR": (DISTANCES, [dist[d][0] for d in DISTANCES])}, xticks=DISTANCES)
     common.plot(os.path.join(args.out, "intensity.png"), "Light intensity (trained in [50, 900])", "intensity [W/sr]",

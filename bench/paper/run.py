@@ -15,7 +15,7 @@ EXPERIMENTS = ["sh_ablation", "generalization", "comparison"]
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scale", default="laptop", choices=["ci", "laptop", "gpu"])
+    p.add_argument("--scale", default="laptop", choices=["ci", "laptop", "laptop128", "gpu"])
     p.add_argument("--out", default="results")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--device", default=None)

@@ -23,8 +23,10 @@ def main():
         run = r.train("sh-" + sh, data, r.config(model={"renderer": {"sh": sh}}))
         m = r.evaluate(run, splits=["test"])
         psnr, ssim = common.split_means(m, "test")
-        results["runs"][label] = {"sh": sh, "run": run, "psnr": psnr, "ssim": ssim}
-        rows.append([label, psnr, ssim])
+        obj = common.object_means(m, "test")
+        results["runs"][label] = {"sh": sh, "run": run, "psnr": psnr, "ssim": ssim, "object": obj,
+                                  "convergence": common.convergence(run)}
+        rows.append([label, psnr, ssim, obj["psnr"], obj["ssim"], obj["flip"]])
     xs = list(range(len(SETTINGS)))
     common.plot(os.path.join(args.out, "sh_ablation.png"), "SH band ablation (test views, novel lights)",
                 "indirect light", {"PSNR": (xs, [v["psnr"] for v in results["runs"].values()])},
@@ -34,7 +36,8 @@ def main():
     results["checks"] = {"SH-5 >= SH-1": sh5 >= results["runs"]["SH-1"]["psnr"],
                          "SH-5 >= w/o SH": sh5 >= results["runs"]["w/o SH"]["psnr"]}
     r.write_results("SH-band ablation", results,
-                    [common.markdown_table(["setting", "PSNR [dB]", "SSIM"], rows),
+                    [common.markdown_table(["setting", "PSNR [dB]", "SSIM", "object PSNR [dB]", "object SSIM",
+                                           "object FLIP"], rows),
                      ["Best: %s. Orderings of the paper: %s." % (
                          best, ", ".join("%s %s" % (k, "holds" if v else "does not hold")
                                          for k, v in results["checks"].items())),

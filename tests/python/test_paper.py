@@ -32,6 +32,19 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
     assert all(0 < v["psnr"] < 100 and v["minutes"] >= 0 for part in ("media", "solids")
                for runs in cmp[part].values() for v in runs.values())
     assert "cloud-point: ours > nerv > bi" in cmp["checks"]
+    # Every method's learning rate comes from the same three-value sweep on the validation split of the part's
+    # first dataset, and every run reports the object's protocol and its convergence beside the paper's numbers.
+    for part, methods in (("media", {"bi", "nerv", "ours"}), ("solids", {"bi", "nerv", "ours_brdf", "ours"})):
+        sweep = cmp["lr_sweep"][part]
+        assert set(sweep) == methods and all(len(v["val_psnr"]) == 3 for v in sweep.values())
+        for runs in cmp[part].values():
+            for method, v in runs.items():
+                scores = sweep[method]["val_psnr"]
+                assert v["lr"] == sweep[method]["chosen"] and "%g" % v["lr"] == max(scores, key=scores.get)
+                assert 0 < v["object"]["psnr"] < 100 and 0 <= v["object"]["flip"] <= 1
+                assert set(v["convergence"]) == {"early", "last", "ratio", "converged"}
+    assert set(cmp["gaps"]) == {"cloud-point", "cloud-envpoint"}
+    assert any(k.startswith("no run runs away") for k in cmp["checks"])
     assert "| Ours + BRDF |" in (tmp_path / "comparison" / "results.md").read_text()
     for f in ["sh_ablation/results.md", "sh_ablation/sh_ablation.png", "generalization/results.md",
               "generalization/distance.png", "generalization/intensity.png", "comparison/comparison.png"]:
