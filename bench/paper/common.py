@@ -161,7 +161,7 @@ class Relit:
         cfg["model"] = merge(merge(cfg.get("model", {}), scale_model), model or {})
         t = {"batch_rays": s["batch_rays"], "steps": self.steps, "seed": self.seed,
              "validate_every": 0 if self.scale_name == "ci" else 500, "checkpoint_every": 500,
-             "log_every": 10 if self.scale_name == "ci" else 50}
+             "log_every": 10}  # the loss every 10 steps: convergence() smooths over enough of them
         cfg["training"] = merge(merge(cfg.get("training", {}), t), training or {})
         return cfg
 
