@@ -91,7 +91,7 @@ def compare(r, args, datasets, methods, results, sweeps, title):
     for name, path in data.items():
         rows = []
         for label, method in methods:
-            run = r.train("%s-%s" % (name, method), path, with_lr(r, method, lrs[method]))
+            run = r.train("%s-%s-lr%g" % (name, method, lrs[method]), path, with_lr(r, method, lrs[method]))
             m = r.evaluate(run, splits=["test"])
             psnr, ssim = common.split_means(m, "test")
             obj = common.object_means(m, "test")
