@@ -339,12 +339,15 @@ void add_hashgrid(std::vector<Case>& cases, const Device& device, bool quick, co
   };
   c.corrupt = [=] { y->data().fill(0.0f); };
   c.kernels = [enc, device] {
-    const auto k = dynamic_cast<const nn::HashGridEncoding&>(*enc).kernel_choice(device);
-    return Json{{"of", "HashGrid"},
-                {"variant", kernel_variant_name(k.variant)},
-                {"parameters", k.variant == KernelVariant::WorkGroup ? k.workgroup.str() : "-"},
-                {"source", k.source},
-                {"tuned", k.tuned}};
+    const auto& grid = dynamic_cast<const nn::HashGridEncoding&>(*enc);
+    const auto k = grid.kernel_choice(device);
+    return Json{
+        {"of", "HashGrid"},
+        {"variant", kernel_variant_name(k.variant)},
+        {"parameters", k.variant == KernelVariant::WorkGroup ? k.workgroup.str()
+                                                             : "R" + std::to_string(grid.gradient_ranges(device))},
+        {"source", k.source},
+        {"tuned", k.tuned}};
   };
   cases.push_back(c);
 }
@@ -462,7 +465,7 @@ void add_renderer(std::vector<Case>& cases, const Device& device, bool quick, co
     const auto& k = big->renderer->kernel_choice();
     return Json{{"of", "renderer"},
                 {"variant", kernel_variant_name(k.variant)},
-                {"parameters", k.variant == KernelVariant::WorkGroup ? k.workgroup.str() : "-"},
+                {"parameters", k.variant == KernelVariant::WorkGroup ? k.workgroup.str() : "T16"},
                 {"source", k.source},
                 {"tuned", k.tuned}};
   };

@@ -343,7 +343,7 @@ __kernel __attribute__((reqd_work_group_size(RAY_ITEMS, 1, 1))) void render_wg_c
 // Given dL/dcolor: dL/dsigma_k = delta_k (T_k (1 - alpha_k) c_k - behind_k) . dL/dcolor into d_props column 0,
 // behind_k = sum_{i>k} w_i c_i + T_N background, and dL/dradiance_k = w_k dL/dcolor. A first sweep along the ray
 // scans the optical depths (each work-item keeps those of its samples), a second from the far end scans
-// w_i c_i into behind_k.
+// w_i c_i into behind_k. `color` is unused (the argument list is the SIMD kernel's, which needs it).
 __kernel __attribute__((reqd_work_group_size(RAY_ITEMS, 1, 1))) void render_wg_composite_backward(
     const uint n_rays, __global const float* restrict rays, __global const float* restrict delta,
     __global const float* restrict props, __global const float* restrict radiance, __global const float* restrict color,
