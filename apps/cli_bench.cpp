@@ -34,6 +34,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <thread>
 #include <unistd.h>
 
@@ -50,10 +51,11 @@ struct BenchOptions {
   std::vector<std::string> compare;
   std::uint32_t repeats = 5;
   bool quick = false;
-  std::string inject_error;          // a case whose result is corrupted before verification (tests the failure path)
-  std::string filter;                // run only the cases whose name contains this
-  std::string mlp_variant = "auto";  // the MLP kernels: auto (the device's choice), simd, workgroup or all
-  double peak_seconds = 0;           // length of one peak launch; 0: 0.25 s (0.05 s with --quick)
+  std::string inject_error;             // a case whose result is corrupted before verification (tests the failure path)
+  std::string filter;                   // run only the cases whose name contains this
+  std::string mlp_variant = "auto";     // the MLP kernels: auto (the device's choice), simd, workgroup or all
+  std::string kernel_variant = "auto";  // the hash-grid and renderer kernels: the same choices
+  double peak_seconds = 0;              // length of one peak launch; 0: 0.25 s (0.05 s with --quick)
 };
 
 // One benchmark case. run() does one unit of work and waits for the device; verify() checks the results of the
@@ -275,12 +277,21 @@ void add_mlp(std::vector<Case>& cases, const Device& device, bool quick, const s
   }
 }
 
-void add_hashgrid(std::vector<Case>& cases, const Device& device, bool quick) {
+// The variant `variant` names ("auto": none forced), and the suffix of its cases' names when both run.
+std::optional<KernelVariant> forced_variant(const std::string& variant) {
+  return variant == "auto" ? std::nullopt : parse_kernel_variant(variant, "--kernel-variant");
+}
+std::string variant_tag(const std::string& variant, bool suffix) {
+  return !suffix ? "" : variant == "simd" ? "_simd" : "_wg";
+}
+
+void add_hashgrid(std::vector<Case>& cases, const Device& device, bool quick, const std::string& variant, bool suffix) {
   // The issue's grid: 16 levels x 2 features, 2^19 entries per level, 3-D positions.
   const Json cfg = {{"type", "HashGrid"},      {"n_levels", 16},        {"n_features_per_level", 2},
                     {"log2_hashmap_size", 19}, {"base_resolution", 16}, {"per_level_scale", 1.5}};
   std::shared_ptr<nn::Encoding> enc = nn::create_encoding(cfg, 3);
-  const auto* grid = dynamic_cast<const nn::HashGridEncoding*>(enc.get());
+  auto* grid = dynamic_cast<nn::HashGridEncoding*>(enc.get());
+  grid->set_kernels(forced_variant(variant));
   const std::uint32_t batch = quick ? 4096 : 76800, check_rows = 256;
   std::vector<float> host_params(enc->n_params());
   enc->initialize_params(host_params.data(), 5);
@@ -296,7 +307,7 @@ void add_hashgrid(std::vector<Case>& cases, const Device& device, bool quick) {
   dy->upload_row_major(dy_host);
   std::shared_ptr<nn::Workspace> ws = enc->make_workspace(device);
   Case c;
-  c.name = "hashgrid_forward_backward";
+  c.name = "hashgrid_forward_backward" + variant_tag(variant, suffix);
   c.family = "encodings";
   c.work = batch;
   c.unit = "samples";
@@ -327,6 +338,17 @@ void add_hashgrid(std::vector<Case>& cases, const Device& device, bool quick) {
     return worst;
   };
   c.corrupt = [=] { y->data().fill(0.0f); };
+  c.kernels = [enc, device] {
+    const auto& grid = dynamic_cast<const nn::HashGridEncoding&>(*enc);
+    const auto k = grid.kernel_choice(device);
+    return Json{
+        {"of", "HashGrid"},
+        {"variant", kernel_variant_name(k.variant)},
+        {"parameters", k.variant == KernelVariant::WorkGroup ? k.workgroup.str()
+                                                             : "R" + std::to_string(grid.gradient_ranges(device))},
+        {"source", k.source},
+        {"tuned", k.tuned}};
+  };
   cases.push_back(c);
 }
 
@@ -368,9 +390,10 @@ struct RenderRun {
   std::shared_ptr<Buffer<float>> rays, t, delta, color, trans, dcol;
   std::shared_ptr<nn::BatchMatrix> dirs, basis, pos, props, rad, drad, dprops;
   std::uint32_t n_rays = 0;
-  RenderRun(const Device& dev, const reference::RayScene& s) : n_rays(s.n_rays) {
+  RenderRun(const Device& dev, const reference::RayScene& s, std::optional<KernelVariant> variant) : n_rays(s.n_rays) {
     renderer = std::make_shared<render::VolumeRenderer>(
         dev, render::VolumeRendererSettings{s.n_samples, int(std::lround(std::sqrt(double(s.n_sh)))) - 1, s.n_dirs});
+    renderer->set_kernels(variant);
     const std::uint32_t n = s.n_rays * s.n_samples;
     rays = std::make_shared<Buffer<float>>(dev, s.rays);
     t = std::make_shared<Buffer<float>>(dev, n);
@@ -397,20 +420,21 @@ struct RenderRun {
   }
 };
 
-void add_renderer(std::vector<Case>& cases, const Device& device, bool quick) {
+void add_renderer(std::vector<Case>& cases, const Device& device, bool quick, const std::string& variant, bool suffix) {
   const std::uint32_t n_rays = quick ? 64 : 1200;
-  auto big = std::make_shared<RenderRun>(device, reference::random_scene(n_rays, 64, 5, 64, 1));
+  const std::optional<KernelVariant> forced = forced_variant(variant);
+  auto big = std::make_shared<RenderRun>(device, reference::random_scene(n_rays, 64, 5, 64, 1), forced);
   auto small_scene = std::make_shared<reference::RayScene>(reference::random_scene(32, 64, 5, 64, 2));
   auto bad = std::make_shared<bool>(false);
   Case c;
-  c.name = "render_forward_backward";
+  c.name = "render_forward_backward" + variant_tag(variant, suffix);
   c.family = "renderer";
   c.work = double(n_rays) * 64;
   c.unit = "samples";
   c.run = [=] { big->run(device); };
   c.verify = [=] {
     const reference::RayScene& s = *small_scene;
-    RenderRun small(device, s);
+    RenderRun small(device, s, forced);
     small.run(device);
     const auto want = reference::reference_color(s, s.props);
     double worst = worst_ratio(small.color->read(), want, 1e-4);
@@ -437,6 +461,14 @@ void add_renderer(std::vector<Case>& cases, const Device& device, bool quick) {
     return *bad ? 1e9 : worst;
   };
   c.corrupt = [=] { *bad = true; };
+  c.kernels = [big] {
+    const auto& k = big->renderer->kernel_choice();
+    return Json{{"of", "renderer"},
+                {"variant", kernel_variant_name(k.variant)},
+                {"parameters", k.variant == KernelVariant::WorkGroup ? k.workgroup.str() : "T16"},
+                {"source", k.source},
+                {"tuned", k.tuned}};
+  };
   cases.push_back(c);
 }
 
@@ -641,8 +673,11 @@ int run_bench(const BenchOptions& o) {
       } else {
         add_mlp(cases, device, o.quick, o.mlp_variant, false);
       }
-      add_hashgrid(cases, device, o.quick);
-      add_renderer(cases, device, o.quick);
+      for (const std::string& v : o.kernel_variant == "all" ? std::vector<std::string>{"simd", "workgroup"}
+                                                            : std::vector<std::string>{o.kernel_variant}) {
+        add_hashgrid(cases, device, o.quick, v, o.kernel_variant == "all");
+        add_renderer(cases, device, o.quick, v, o.kernel_variant == "all");
+      }
       add_adam(cases, device, o.quick);
       add_pathtracer(cases, device, o.quick);
     }
@@ -678,9 +713,10 @@ int run_bench(const BenchOptions& o) {
     for (const Json& j : rows)
       if (j.contains("kernels"))
         std::printf(
-            "  %-28s MLP kernels: %s %s (%s%s)\n", j["name"].get<std::string>().c_str(),
-            j["kernels"]["variant"].get<std::string>().c_str(), j["kernels"]["parameters"].get<std::string>().c_str(),
-            j["kernels"]["source"].get<std::string>().c_str(), j["kernels"]["tuned"].get<bool>() ? "" : ", untuned");
+            "  %-28s %s kernels: %s %s (%s%s)\n", j["name"].get<std::string>().c_str(),
+            j["kernels"].value("of", std::string("MLP")).c_str(), j["kernels"]["variant"].get<std::string>().c_str(),
+            j["kernels"]["parameters"].get<std::string>().c_str(), j["kernels"]["source"].get<std::string>().c_str(),
+            j["kernels"]["tuned"].get<bool>() ? "" : ", untuned");
     std::printf("  kernel builds and first launches: %.2f s (setup %.2f s); measured peak %.1f GFLOP/s\n", compile,
                 setup_s, peak);
     doc["devices"].push_back({{"device", info.description()},
@@ -727,6 +763,11 @@ void add_bench_command(CLI::App& app) {
   cmd->add_option("--mlp-variant", o->mlp_variant,
                   "MLP kernels: auto (the device's choice), simd, workgroup, or all (each MLP case with both "
                   "variants, named ..._simd and ..._wg)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "simd", "workgroup", "all"}));
+  cmd->add_option("--kernel-variant", o->kernel_variant,
+                  "hash-grid and renderer kernels: auto (the device's choice), simd, workgroup, or all (each of "
+                  "those cases with both variants, named ..._simd and ..._wg)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "simd", "workgroup", "all"}));
   cmd->add_flag("--quick", o->quick, "small sizes: checks that everything runs and verifies (seconds)");

@@ -3,7 +3,9 @@
 
 #include <relit/cl/device.hpp>
 #include <relit/error.hpp>
+#include <relit/nn/encodings.hpp>
 #include <relit/nn/fully_fused_mlp.hpp>
+#include <relit/render/volume_renderer.hpp>
 #include <relit/version.hpp>
 
 #include <nlohmann/json.hpp>
@@ -68,6 +70,10 @@ int run_devices(const Options& o) {
     // network where its activations would not fit the device's local memory).
     const nn::FullyFusedMLP::KernelChoice mlp = nn::FullyFusedMLP::default_kernels(i);
     const bool simd = mlp.variant == nn::FullyFusedMLP::Variant::Simd;
+    // The hash-grid encoding's and the renderer's (kernel_variant "auto"; parameters before fitting a grid or
+    // a renderer's samples per ray).
+    const nn::HashGridEncoding::KernelChoice grid = nn::HashGridEncoding::default_kernels(i);
+    const render::VolumeRenderer::KernelChoice renderer = render::VolumeRenderer::default_kernels(i);
     if (o.json) {
       nlohmann::json d = {{"index", i.index},
                           {"platform_index", i.platform_index},
@@ -93,7 +99,17 @@ int run_devices(const Options& o) {
                            {{"variant", nn::FullyFusedMLP::variant_name(mlp.variant)},
                             {"parameters", simd ? mlp.blocking.str() : mlp.workgroup.str()},
                             {"source", mlp.source},
-                            {"tuned", mlp.tuned}}}};
+                            {"tuned", mlp.tuned}}},
+                          {"encoding_kernels",
+                           {{"variant", kernel_variant_name(grid.variant)},
+                            {"parameters", grid.workgroup.str()},
+                            {"source", grid.source},
+                            {"tuned", grid.tuned}}},
+                          {"renderer_kernels",
+                           {{"variant", kernel_variant_name(renderer.variant)},
+                            {"parameters", renderer.workgroup.str()},
+                            {"source", renderer.source},
+                            {"tuned", renderer.tuned}}}};
       if (o.check) {
         d["kernels"] = nlohmann::json::array();
         for (const auto& c : checks)
@@ -116,6 +132,8 @@ int run_devices(const Options& o) {
                            std::to_string(i.preferred_vector_width_float));
     row("fp64", i.fp64 ? "yes" : "no");
     row("MLP kernels", mlp.str());
+    row("grid kernels", grid.str());
+    row("render kernels", renderer.str());
     row("extensions", wrap(i.extensions, 20, 100));
     if (o.check) {
       std::ostringstream s;

@@ -33,27 +33,8 @@
 // whole gradient out to memory and back.
 // The forward loads an entry's 2 features with one 8-byte load (gather16x2): about 30% less forward time on
 // PoCL (AVX-512, AMD EPYC) than two 4-byte loads per entry, which LLVM turned into AVX-512 gathers.
-#include "enc_common.clh"
+#include "enc_hashgrid.clh"
 
-#ifndef DIMS
-#define DIMS 3
-#endif
-#ifndef FEATS
-#define FEATS 2
-#endif
-#ifndef N_LEVELS
-#define N_LEVELS 1
-#define LEVEL_SCALES \
-  { 15.0f }
-#define LEVEL_RES \
-  { 17u }
-#define LEVEL_SIZE \
-  { 4920u }
-#define LEVEL_OFFSET \
-  { 0u }
-#define LEVEL_HASHED \
-  { 0u }
-#endif
 #ifndef PREFETCH
 #define PREFETCH 0
 #endif
@@ -75,21 +56,6 @@
 #ifndef N_RANGES
 #define N_RANGES 1
 #endif
-#if DIMS != 2 && DIMS != 3
-#error "DIMS must be 2 or 3"
-#endif
-
-#define N_CORNERS (1 << DIMS)
-
-__constant float level_scale[N_LEVELS] = LEVEL_SCALES;
-__constant uint level_res[N_LEVELS] = LEVEL_RES;
-__constant uint level_size[N_LEVELS] = LEVEL_SIZE;
-__constant uint level_offset[N_LEVELS] = LEVEL_OFFSET;
-__constant uint level_hashed[N_LEVELS] = LEVEL_HASHED;
-
-// instant-ngp's primes; the first is 1 so that the x-neighbours of a vertex stay close in memory.
-__constant uint grid_prime[3] = {1u, 2654435761u, 805459861u};
-
 // Cell and in-cell position of 16 samples at `level`.
 inline void grid_cell(const float16* x, uint level, uint16* cell, float16* frac) {
   const float scale = level_scale[level];

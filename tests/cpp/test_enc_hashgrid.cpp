@@ -1,17 +1,20 @@
 // The HashGrid encoding against values computed by hand (instant-ngp's level layout, table indices) and a
 // double-precision host reference: forward, parameter gradient (order independence, determinism, padding
 // rows, accumulation), input gradient by finite differences, and a small fitting run that trains the grid
-// alone (linear readout) to reproduce an image.
+// alone (linear readout) to reproduce an image; each for both kernel variants (SIMD and work-group), and the
+// per-device choice between them.
 #include "enc_test_support.hpp"
 #include <relit/verify/hashgrid_reference.hpp>
 
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <numeric>
 
 namespace relit {
 
 using nn::HashGridEncoding;
+using WorkGroupParams = HashGridEncoding::WorkGroupParams;
 using reference::reference_forward;
 using reference::reference_param_gradient;
 using test::Matrix;
@@ -28,6 +31,20 @@ std::vector<float> init_params(const HashGridEncoding& enc, float amplitude, std
   enc.initialize_params(p.data(), seed);
   for (float& v : p) v *= amplitude / 1e-4f;  // larger values than the default init, so outputs are O(1)
   return p;
+}
+
+// Work-group parameters that every device must run alike: odd sizes that divide nothing (40-sample forward
+// groups, 24 owners per gradient group staging 48 samples, 5 groups per compute unit so that a level's table is
+// split over several groups, 3-sample input-gradient groups).
+const WorkGroupParams kWgOdd{40, 24, 48, 5, 3};
+
+// The kernel variants the tests run: each forced (on a CPU "auto" is "simd").
+std::unique_ptr<HashGridEncoding> make_grid_for(const std::string& variant, const Json& cfg, std::uint32_t dims) {
+  auto enc = make_grid(cfg, dims);
+  if (variant == "simd") enc->set_kernels(KernelVariant::Simd);
+  if (variant == "workgroup") enc->set_kernels(KernelVariant::WorkGroup, kWgOdd);
+  EXPECT_EQ(kernel_variant_name(enc->kernel_choice(test::test_device()).variant), variant);  // no silent fallback
+  return enc;
 }
 
 // Inputs in [-0.1, 1.1]^d (the clamp is part of what is tested) with some exact 0 and 1 coordinates.
@@ -126,21 +143,24 @@ TEST(EncHashGrid, LevelLayoutMatchesValuesComputedByHand) {
   EXPECT_EQ(enc->n_output_dims(), 32u);
 }
 
+class HashGridVariant : public ::testing::TestWithParam<std::string> {};
+
 // Table indices of the device's forward pass computed by hand: every parameter zero but the two features of
 // one entry, the input placed at in-cell position (1/4, 1/4, 1/4) of a chosen cell, so that the level's output
 // is the d-linear weight of the corner that owns the entry — (3/4)^3 for the cell's first corner, (1/4)^3 for
 // the opposite one — and 0 if the kernel looked elsewhere. Dense: index = v_x + v_y res + v_z res^2; hashed:
 // (v_x * 1 XOR v_y * 2654435761 XOR v_z * 805459861) mod 2^32, masked to the table (instant-ngp's primes).
-TEST(EncHashGrid, TableIndicesMatchIndicesComputedByHand) {
+TEST_P(HashGridVariant, TableIndicesMatchIndicesComputedByHand) {
   const Device device = test::test_device();
   // Levels 0 and 1 dense (17^3 = 4913 -> 4920 entries, 24^3 = 13824), level 2 hashed (32^3 > 2^14).
-  auto enc = make_grid({{"type", "HashGrid"},
-                        {"n_levels", 3},
-                        {"n_features_per_level", 2},
-                        {"log2_hashmap_size", 14},
-                        {"base_resolution", 16},
-                        {"per_level_scale", 1.3819128799677762}},
-                       3);
+  auto enc = make_grid_for(GetParam(),
+                           {{"type", "HashGrid"},
+                            {"n_levels", 3},
+                            {"n_features_per_level", 2},
+                            {"log2_hashmap_size", 14},
+                            {"base_resolution", 16},
+                            {"per_level_scale", 1.3819128799677762}},
+                           3);
   ASSERT_EQ(enc->n_params(), 2u * (4920 + 13824 + 16384));
   struct Probe {
     std::uint32_t level;
@@ -179,7 +199,7 @@ TEST(EncHashGrid, TableIndicesMatchIndicesComputedByHand) {
   }
 }
 
-TEST(EncHashGrid, ForwardMatchesReference) {
+TEST_P(HashGridVariant, ForwardMatchesReference) {
   const Device device = test::test_device();
   const std::vector<std::pair<Json, std::uint32_t>> configs = {{kGrid3, 3},
                                                                {kGrid2, 2},
@@ -196,7 +216,7 @@ TEST(EncHashGrid, ForwardMatchesReference) {
                                                                  {"base_resolution", 20}},
                                                                 2}};
   for (const auto& [cfg, dims] : configs) {
-    auto enc = make_grid(cfg, dims);
+    auto enc = make_grid_for(GetParam(), cfg, dims);
     const std::vector<float> params = init_params(*enc, 1.0f, 3);
     const Buffer<float> p(device, params);
     const Matrix x = grid_inputs(1000, dims, 5);
@@ -207,10 +227,10 @@ TEST(EncHashGrid, ForwardMatchesReference) {
   }
 }
 
-TEST(EncHashGrid, ParamGradientMatchesReferenceInAnyOrderAndIsDeterministic) {
+TEST_P(HashGridVariant, ParamGradientMatchesReferenceInAnyOrderAndIsDeterministic) {
   const Device device = test::test_device();
   for (const auto& [cfg, dims] : {std::pair<Json, std::uint32_t>{kGrid3, 3}, {kGrid2, 2}}) {
-    auto enc = make_grid(cfg, dims);
+    auto enc = make_grid_for(GetParam(), cfg, dims);
     const Buffer<float> p(device, init_params(*enc, 1.0f, 3));
     const std::uint32_t n = 1000;  // not a multiple of 128: padding rows must contribute nothing
     const Matrix x = grid_inputs(n, dims, 9);
@@ -272,6 +292,7 @@ TEST(EncHashGrid, ParamGradientIsBitIdenticalForAnyNumberOfRanges) {
     Json cfg = kGrid3;
     cfg["gradient_ranges"] = ranges;
     auto enc = make_grid(cfg, 3);
+    enc->set_kernels(KernelVariant::Simd);
     ASSERT_EQ(enc->gradient_ranges(device), ranges);
     const Buffer<float> p(device, init_params(*enc, 1.0f, 3));
     const Matrix w = test::random_matrix(700, enc->n_output_dims(), -1, 1, 22);
@@ -285,11 +306,33 @@ TEST(EncHashGrid, ParamGradientIsBitIdenticalForAnyNumberOfRanges) {
   }
 }
 
+// The work-group kernels' claim: any work-group parameters (how many owners per group, groups per level,
+// samples staged per step) give the very same bits.
+TEST(EncHashGrid, WorkGroupParamGradientIsBitIdenticalForAnyParameters) {
+  const Device device = test::test_device();
+  const Matrix x = grid_inputs(700, 3, 21);
+  std::vector<float> first;
+  for (const WorkGroupParams& p : {kWgOdd, WorkGroupParams{256, 128, 128, 2, 8}, WorkGroupParams{16, 7, 16, 1, 1}}) {
+    auto enc = make_grid(kGrid3, 3);
+    enc->set_kernels(KernelVariant::WorkGroup, p);
+    ASSERT_EQ(enc->kernel_choice(device).variant, KernelVariant::WorkGroup);
+    const Buffer<float> params(device, init_params(*enc, 1.0f, 3));
+    const Matrix w = test::random_matrix(700, enc->n_output_dims(), -1, 1, 22);
+    Buffer<float> g(device, enc->n_params());
+    enc->backward(device, {&params, 0}, test::to_device(device, x), test::to_device(device, w), 0, {&g, 0}, false,
+                  nullptr, nullptr);
+    if (first.empty())
+      first = g.read();
+    else
+      EXPECT_EQ(g.read(), first) << p.str();
+  }
+}
+
 // The output is linear in the parameters, so a central difference of the device's own forward pass with a
 // large step is exact up to float rounding: this checks the backward kernel against the forward kernel.
-TEST(EncHashGrid, ParamGradientMatchesFiniteDifferencesOfTheForwardKernel) {
+TEST_P(HashGridVariant, ParamGradientMatchesFiniteDifferencesOfTheForwardKernel) {
   const Device device = test::test_device();
-  auto enc = make_grid(kGrid3, 3);
+  auto enc = make_grid_for(GetParam(), kGrid3, 3);
   std::vector<float> params = init_params(*enc, 1.0f, 5);
   const Matrix x = grid_inputs(300, 3, 13);
   const Matrix w = test::random_matrix(300, enc->n_output_dims(), -1, 1, 14);
@@ -318,10 +361,10 @@ TEST(EncHashGrid, ParamGradientMatchesFiniteDifferencesOfTheForwardKernel) {
   }
 }
 
-TEST(EncHashGrid, InputGradientMatchesFiniteDifferences) {
+TEST_P(HashGridVariant, InputGradientMatchesFiniteDifferences) {
   const Device device = test::test_device();
   for (const auto& [cfg, dims] : {std::pair<Json, std::uint32_t>{kGrid3, 3}, {kGrid2, 2}}) {
-    auto enc = make_grid(cfg, dims);
+    auto enc = make_grid_for(GetParam(), cfg, dims);
     const std::vector<float> params = init_params(*enc, 1.0f, 3);
     const Buffer<float> p(device, params);
     Matrix x = test::random_matrix(200, dims, 0.01, 0.99, 17);  // inside: the clamp has no derivative at 0 and 1
@@ -349,15 +392,16 @@ TEST(EncHashGrid, InputGradientMatchesFiniteDifferences) {
 
 // The grid alone (readout: the sum of its features) learns a smooth 2-D image by plain gradient descent:
 // the forward/backward pair trains. The MLP version of this test belongs with the fused MLP.
-TEST(EncHashGrid, FitsAnImageWithALinearReadout) {
+TEST_P(HashGridVariant, FitsAnImageWithALinearReadout) {
   const Device device = test::test_device();
-  auto enc = make_grid({{"type", "HashGrid"},
-                        {"n_levels", 8},
-                        {"n_features_per_level", 2},
-                        {"log2_hashmap_size", 12},
-                        {"base_resolution", 4},
-                        {"per_level_scale", 1.6}},
-                       2);
+  auto enc = make_grid_for(GetParam(),
+                           {{"type", "HashGrid"},
+                            {"n_levels", 8},
+                            {"n_features_per_level", 2},
+                            {"log2_hashmap_size", 12},
+                            {"base_resolution", 4},
+                            {"per_level_scale", 1.6}},
+                           2);
   const std::uint32_t side = 64, n = side * side, out_dims = enc->n_output_dims();
   Matrix x(n, 2);
   Eigen::VectorXd target(n);
@@ -399,6 +443,70 @@ TEST(EncHashGrid, FitsAnImageWithALinearReadout) {
   std::cout << "[ fit      ] PSNR " << initial << " dB -> " << final_psnr << " dB after 300 steps\n";
   // Measured on PoCL (haswell): 53.6 dB (52.1 at lr 8e-4, 54.9 at 1.2e-3); asserted with margin.
   EXPECT_GE(final_psnr, 45.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(EncHashGrid, HashGridVariant, ::testing::Values("simd", "workgroup"),
+                         [](const ::testing::TestParamInfo<std::string>& info) { return info.param; });
+
+TEST(EncHashGrid, KernelVariantFollowsTheTableConfigAndEnvironment) {
+  // The test sets RELIT_ENCODING_VARIANT itself; a value the suite runs under is put back at the end.
+  const char* outer = std::getenv("RELIT_ENCODING_VARIANT");
+  const std::string saved = outer ? outer : "";
+  ::unsetenv("RELIT_ENCODING_VARIANT");
+  DeviceInfo cpu, nvidia, amd, intel, other;
+  cpu.type = "cpu";
+  cpu.vendor = "GenuineIntel";
+  nvidia.type = amd.type = intel.type = "gpu";
+  nvidia.vendor = "NVIDIA Corporation";
+  amd.vendor = "Advanced Micro Devices, Inc.";
+  intel.vendor = "Intel(R) Corporation";
+  other.type = "accelerator";
+  other.vendor = "Example";
+  EXPECT_EQ(HashGridEncoding::device_default(cpu).variant, KernelVariant::Simd);
+  EXPECT_TRUE(HashGridEncoding::device_default(cpu).tuned);
+  for (const DeviceInfo* gpu : {&nvidia, &amd, &intel, &other}) {
+    const auto g = HashGridEncoding::device_default(*gpu);
+    EXPECT_EQ(g.variant, KernelVariant::WorkGroup) << gpu->vendor;
+    EXPECT_FALSE(g.tuned) << gpu->vendor;  // no GPU was measured
+  }
+  EXPECT_NE(HashGridEncoding::device_default(nvidia).source.find("NVIDIA"), std::string::npos);
+  EXPECT_EQ(HashGridEncoding::device_default(amd).workgroup.items, 256u);
+  EXPECT_NE(HashGridEncoding::device_default(intel).source.find("Intel"), std::string::npos);
+  EXPECT_NE(HashGridEncoding::device_default(other).source.find("other"), std::string::npos);
+
+  // The config's kernel_variant, then RELIT_ENCODING_VARIANT over it, then set_kernels() over both.
+  const Device device = test::test_device();
+  Json simd_cfg = kGrid3, wg_cfg = kGrid3;
+  simd_cfg["kernel_variant"] = "simd";
+  wg_cfg["kernel_variant"] = "workgroup";
+  auto simd = make_grid(simd_cfg, 3), wg = make_grid(wg_cfg, 3), automatic = make_grid(kGrid3, 3);
+  EXPECT_EQ(simd->kernel_choice(device).variant, KernelVariant::Simd);
+  EXPECT_EQ(wg->kernel_choice(device).variant, KernelVariant::WorkGroup);
+  EXPECT_EQ(wg->kernel_choice(device).source, "kernel_variant");
+  EXPECT_EQ(automatic->kernel_choice(device).variant, HashGridEncoding::default_kernels(device.info()).variant);
+  EXPECT_EQ(wg->hyperparams().at("kernel_variant"), "workgroup");
+  ::setenv("RELIT_ENCODING_VARIANT", "workgroup", 1);
+  EXPECT_EQ(HashGridEncoding::default_kernels(cpu).variant, KernelVariant::WorkGroup);
+  EXPECT_FALSE(HashGridEncoding::default_kernels(cpu).tuned);
+  EXPECT_EQ(simd->kernel_choice(device).variant, KernelVariant::WorkGroup);
+  EXPECT_EQ(simd->kernel_choice(device).source, "RELIT_ENCODING_VARIANT");
+  simd->set_kernels(KernelVariant::Simd);
+  EXPECT_EQ(simd->kernel_choice(device).variant, KernelVariant::Simd);
+  EXPECT_EQ(simd->kernel_choice(device).source, "set_kernels()");
+  ::setenv("RELIT_ENCODING_VARIANT", "SIMD", 1);
+  EXPECT_EQ(HashGridEncoding::default_kernels(nvidia).variant, KernelVariant::Simd);
+  ::setenv("RELIT_ENCODING_VARIANT", "gpu", 1);
+  EXPECT_THROW(HashGridEncoding::default_kernels(cpu), InvalidArgument);
+  if (outer)
+    ::setenv("RELIT_ENCODING_VARIANT", saved.c_str(), 1);
+  else
+    ::unsetenv("RELIT_ENCODING_VARIANT");
+
+  EXPECT_THROW(wg->set_kernels(KernelVariant::WorkGroup, WorkGroupParams{64, 64, 40, 2, 4}), InvalidArgument);
+  EXPECT_THROW(wg->set_kernels(KernelVariant::WorkGroup, WorkGroupParams{0, 64, 64, 2, 4}), InvalidArgument);
+  Json bad = kGrid3;
+  bad["kernel_variant"] = "gpu";
+  EXPECT_THROW(make_grid(bad, 3), ConfigError);
 }
 
 }  // namespace relit

@@ -1,5 +1,6 @@
 // The neural volume renderer: forward against a double-precision reference of docs/design.md §4.2 on random inputs,
-// backward against central finite differences of that reference, sampling, and known answers.
+// backward against central finite differences of that reference, sampling, and known answers; the lighting and
+// compositing for both kernel variants (SIMD and work-group), and the per-device choice between them.
 #include <relit/verify/renderer_reference.hpp>
 #include "test_support.hpp"
 
@@ -10,6 +11,7 @@
 #include <Eigen/Core>
 
 #include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <random>
 #include <string>
@@ -28,6 +30,29 @@ using reference::random_scene;
 using reference::RayScene;
 using reference::reference_color;
 
+// The kernels run_device() uses: "auto" (the device's choice), or a variant forced by the RendererVariant
+// fixture for the test it runs.
+std::string g_variant = "auto";
+
+// Forces the variant `g_variant` names: "workgroup" with 8 work-items per ray (so that 16 and 32 samples per
+// ray make 2 and 4 segments of the compositing scan) and the shared directions in local memory, and
+// "workgroup_unstaged" with 64 (lowered to the samples per ray: one segment) read from global memory.
+void use_variant(VolumeRenderer& renderer) {
+  if (g_variant == "simd") renderer.set_kernels(KernelVariant::Simd);
+  if (g_variant == "workgroup")
+    renderer.set_kernels(KernelVariant::WorkGroup, VolumeRenderer::WorkGroupParams{8, true});
+  if (g_variant == "workgroup_unstaged")
+    renderer.set_kernels(KernelVariant::WorkGroup, VolumeRenderer::WorkGroupParams{64, false});
+  if (g_variant != "auto")  // no silent fallback to the other variant
+    EXPECT_EQ(kernel_variant_name(renderer.kernel_choice().variant), g_variant.substr(0, g_variant.find('_')));
+}
+
+class RendererVariant : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override { g_variant = GetParam(); }
+  void TearDown() override { g_variant = "auto"; }
+};
+
 struct DeviceRun {
   std::vector<float> color, transmittance, d_props;
 };
@@ -37,6 +62,7 @@ DeviceRun run_device(const Device& dev, const RayScene& s, int lmax, const std::
                      bool visibility_gradient = false) {
   VolumeRenderer renderer(
       dev, {s.n_samples, lmax, s.n_dirs, closed_form, s.n_env, s.brdf ? "brdf" : "phase", visibility_gradient});
+  use_variant(renderer);
   const std::uint32_t n = s.n_rays * s.n_samples;
   Buffer<float> rays(dev, s.rays), t(dev, n), delta(dev, n), color(dev, 3 * s.n_rays), trans(dev, s.n_rays),
       dcol(dev, d_color);
@@ -114,7 +140,7 @@ int expect_gradients_match_finite_differences(const RayScene& s, const std::vect
 
 }  // namespace
 
-TEST(VolumeRenderer, ForwardMatchesDoubleReference) {
+TEST_P(RendererVariant, ForwardMatchesDoubleReference) {
   for (const int lmax : {-1, 0, 2}) {
     const RayScene s = random_scene(7, 32, lmax, 16, 11 + lmax);
     const auto got = run_device(test::test_device(), s, lmax, std::vector<float>(3 * s.n_rays, 1.f));
@@ -124,7 +150,7 @@ TEST(VolumeRenderer, ForwardMatchesDoubleReference) {
   }
 }
 
-TEST(VolumeRenderer, BackwardMatchesFiniteDifferencesOfTheReference) {
+TEST_P(RendererVariant, BackwardMatchesFiniteDifferencesOfTheReference) {
   const int lmax = 1;
   const RayScene s = random_scene(3, 16, lmax, 8, 5);
   const auto w = random_weights(3 * s.n_rays, 3);
@@ -134,7 +160,7 @@ TEST(VolumeRenderer, BackwardMatchesFiniteDifferencesOfTheReference) {
 
 // The shadow gradient's input (docs/baselines.md): dL/dV toward the point light, in both scattering models;
 // the environment's columns stay zero.
-TEST(VolumeRenderer, VisibilityGradientMatchesFiniteDifferences) {
+TEST_P(RendererVariant, VisibilityGradientMatchesFiniteDifferences) {
   for (const bool brdf : {false, true}) {
     const int lmax = 1;
     const RayScene s = random_scene(3, 16, lmax, 8, 17, 0, brdf);
@@ -147,7 +173,7 @@ TEST(VolumeRenderer, VisibilityGradientMatchesFiniteDifferences) {
   }
 }
 
-TEST(VolumeRenderer, ClosedFormIndirectMatchesReferenceAndFiniteDifferences) {
+TEST_P(RendererVariant, ClosedFormIndirectMatchesReferenceAndFiniteDifferences) {
   const int lmax = 2;
   const RayScene s = random_scene(3, 16, lmax, 8, 21);
   const auto w = random_weights(3 * s.n_rays, 8);
@@ -194,7 +220,7 @@ TEST(VolumeRenderer, ClosedFormIsTheLimitOfTheDirectionSum) {
   }
 }
 
-TEST(VolumeRenderer, AbsorbingSlabTransmitsExpMinusSigmaD) {
+TEST_P(RendererVariant, AbsorbingSlabTransmitsExpMinusSigmaD) {
   // A ray along +x through the box (length 2) in a medium of sigma 0.7 and albedo 0: colour = T bg, T = e^-1.4.
   const Device dev = test::test_device();
   RayScene s = random_scene(1, 64, -1, 4, 1);
@@ -352,7 +378,7 @@ void expect_environment_forward(const Device& dev, const RayScene& s, int lmax, 
 
 }  // namespace
 
-TEST(VolumeRendererEnvironment, ForwardMatchesDoubleReference) {
+TEST_P(RendererVariant, EnvironmentForwardMatchesDoubleReference) {
   const Device dev = test::test_device();
   const EnvironmentLight light = random_environment(16, 8, 2);
   for (const int lmax : {-1, 2}) {
@@ -390,7 +416,7 @@ void expect_environment_backward(bool brdf, std::uint32_t scene_seed, std::uint3
 
 }  // namespace
 
-TEST(VolumeRendererEnvironment, BackwardMatchesFiniteDifferencesAndIsolatesVisibility) {
+TEST_P(RendererVariant, EnvironmentBackwardMatchesFiniteDifferencesAndIsolatesVisibility) {
   expect_environment_backward(false, 6, 5, 1, 9, 4);
 }
 
@@ -519,7 +545,7 @@ TEST(VolumeRendererBrdf, ClosedFormIndirectAndUnknownScatteringAreErrors) {
   expect_invalid_argument([&] { VolumeRenderer(dev, rs); }, "\"phase\" (media) or \"brdf\" (solids)");
 }
 
-TEST(VolumeRendererBrdf, ForwardMatchesDoubleReference) {
+TEST_P(RendererVariant, BrdfForwardMatchesDoubleReference) {
   for (const int lmax : {-1, 1}) {
     const RayScene s = random_scene(7, 32, lmax, 16, 61 + lmax, 0, true);
     const auto got = run_device(test::test_device(), s, lmax, std::vector<float>(3 * s.n_rays, 1.f));
@@ -530,7 +556,7 @@ TEST(VolumeRendererBrdf, ForwardMatchesDoubleReference) {
   }
 }
 
-TEST(VolumeRendererBrdf, ForwardWithEnvironmentMatchesDoubleReference) {
+TEST_P(RendererVariant, BrdfForwardWithEnvironmentMatchesDoubleReference) {
   const Device dev = test::test_device();
   const EnvironmentLight light = random_environment(16, 8, 3);
   for (const int lmax : {-1, 1}) {
@@ -542,7 +568,7 @@ TEST(VolumeRendererBrdf, ForwardWithEnvironmentMatchesDoubleReference) {
   }
 }
 
-TEST(VolumeRendererBrdf, BackwardMatchesFiniteDifferencesOfTheReference) {
+TEST_P(RendererVariant, BrdfBackwardMatchesFiniteDifferencesOfTheReference) {
   const int lmax = 1;
   const RayScene s = random_scene(3, 16, lmax, 8, 15, 0, true);
   const auto w = random_weights(3 * s.n_rays, 13);
@@ -558,7 +584,7 @@ TEST(VolumeRendererBrdf, BackwardMatchesFiniteDifferencesOfTheReference) {
   EXPECT_GT(normal, 24);
 }
 
-TEST(VolumeRendererBrdf, BackwardWithEnvironmentMatchesFiniteDifferencesAndIsolatesVisibility) {
+TEST_P(RendererVariant, BrdfBackwardWithEnvironmentMatchesFiniteDifferencesAndIsolatesVisibility) {
   expect_environment_backward(true, 16, 6, 2, 5, 14);
 }
 
@@ -604,6 +630,79 @@ TEST(VolumeRendererBrdf, RadianceMatchesThePathTracersBrdf) {
       lit += ch == 0 && expected > 1e-3;
     }
   EXPECT_GT(lit, int(n / 3)) << "many samples must face both the camera and the light";
+}
+
+INSTANTIATE_TEST_SUITE_P(VolumeRenderer, RendererVariant, ::testing::Values("simd", "workgroup", "workgroup_unstaged"),
+                         [](const ::testing::TestParamInfo<std::string>& info) { return info.param; });
+
+// Every sum of the work-group kernels has one order: two runs give the same bits.
+TEST(VolumeRenderer, WorkGroupKernelsAreBitForBitDeterministic) {
+  const int lmax = 1;
+  const RayScene s = random_scene(5, 32, lmax, 8, 91);
+  const auto w = random_weights(3 * s.n_rays, 92);
+  g_variant = "workgroup";
+  const auto a = run_device(test::test_device(), s, lmax, w), b = run_device(test::test_device(), s, lmax, w);
+  g_variant = "auto";
+  EXPECT_EQ(a.color, b.color);
+  EXPECT_EQ(a.transmittance, b.transmittance);
+  EXPECT_EQ(a.d_props, b.d_props);
+}
+
+TEST(VolumeRenderer, KernelVariantFollowsTheTableSettingsAndEnvironment) {
+  // The test sets RELIT_RENDER_VARIANT itself; a value the suite runs under is put back at the end.
+  const char* outer = std::getenv("RELIT_RENDER_VARIANT");
+  const std::string saved = outer ? outer : "";
+  ::unsetenv("RELIT_RENDER_VARIANT");
+  DeviceInfo cpu, nvidia, amd, intel, other;
+  cpu.type = "cpu";
+  cpu.vendor = "GenuineIntel";
+  nvidia.type = amd.type = intel.type = "gpu";
+  nvidia.vendor = "NVIDIA Corporation";
+  amd.vendor = "Advanced Micro Devices, Inc.";
+  intel.vendor = "Intel(R) Corporation";
+  other.type = "accelerator";
+  other.vendor = "Example";
+  EXPECT_EQ(VolumeRenderer::device_default(cpu).variant, KernelVariant::Simd);
+  EXPECT_TRUE(VolumeRenderer::device_default(cpu).tuned);
+  for (const DeviceInfo* gpu : {&nvidia, &amd, &intel, &other}) {
+    const auto g = VolumeRenderer::device_default(*gpu);
+    EXPECT_EQ(g.variant, KernelVariant::WorkGroup) << gpu->vendor;
+    EXPECT_FALSE(g.tuned) << gpu->vendor;  // no GPU was measured
+  }
+  EXPECT_NE(VolumeRenderer::device_default(amd).source.find("AMD"), std::string::npos);
+  EXPECT_EQ(VolumeRenderer::device_default(intel).workgroup.items, 32u);
+
+  // The settings' kernel_variant, then RELIT_RENDER_VARIANT over it, then set_kernels() over both.
+  const Device dev = test::test_device();
+  VolumeRendererSettings simd_settings{48, 1, 8}, wg_settings{48, 1, 8};
+  simd_settings.kernel_variant = "simd";
+  wg_settings.kernel_variant = "workgroup";
+  EXPECT_EQ(VolumeRenderer(dev, simd_settings).kernel_choice().variant, KernelVariant::Simd);
+  const VolumeRenderer wg(dev, wg_settings);
+  EXPECT_EQ(wg.kernel_choice().variant, KernelVariant::WorkGroup);
+  EXPECT_EQ(wg.kernel_choice().source, "kernel_variant");
+  EXPECT_EQ(wg.kernel_choice().workgroup.items, 16u) << "a power of two that divides 48 samples";
+  EXPECT_EQ(VolumeRenderer(dev, {48, 1, 8}).kernel_choice().variant,
+            VolumeRenderer::default_kernels(dev.info()).variant);
+  ::setenv("RELIT_RENDER_VARIANT", "workgroup", 1);
+  VolumeRenderer forced(dev, simd_settings);
+  EXPECT_EQ(forced.kernel_choice().variant, KernelVariant::WorkGroup);
+  EXPECT_EQ(forced.kernel_choice().source, "RELIT_RENDER_VARIANT");
+  EXPECT_FALSE(VolumeRenderer::default_kernels(cpu).tuned);
+  forced.set_kernels(KernelVariant::Simd);
+  EXPECT_EQ(forced.kernel_choice().variant, KernelVariant::Simd);
+  EXPECT_EQ(forced.kernel_choice().source, "set_kernels()");
+  ::setenv("RELIT_RENDER_VARIANT", "gpu", 1);
+  EXPECT_THROW(VolumeRenderer::default_kernels(cpu), InvalidArgument);
+  if (outer)
+    ::setenv("RELIT_RENDER_VARIANT", saved.c_str(), 1);
+  else
+    ::unsetenv("RELIT_RENDER_VARIANT");
+
+  EXPECT_THROW(forced.set_kernels(KernelVariant::WorkGroup, VolumeRenderer::WorkGroupParams{0, true}), InvalidArgument);
+  VolumeRendererSettings bad{16, 1, 8};
+  bad.kernel_variant = "gpu";
+  EXPECT_THROW(VolumeRenderer(dev, bad), InvalidArgument);
 }
 
 }  // namespace relit

@@ -110,6 +110,10 @@ void MediumModel::configure_renderer(config::Reader& r, config::Docs* docs) {
     s.closed_form_indirect = rr.boolean("closed_form_indirect", false,
                                         "closed-form indirect light sum_lm g^l c_lm Y_lm(-w_o) instead of the "
                                         "K-direction sum (no max(0, .) clamp)");
+  s.kernel_variant = rr.choice("kernel_variant", "auto", {"auto", "simd", "workgroup"},
+                               "which kernels light and composite the samples: auto (the device's table: SIMD "
+                               "kernels on CPUs, work-group kernels on GPUs), simd or workgroup; "
+                               "RELIT_RENDER_VARIANT overrides it (docs/renderer.md)");
   sub.finish_into(r);
 }
 

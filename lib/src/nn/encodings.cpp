@@ -44,6 +44,10 @@ std::unique_ptr<Encoding> make_hash_grid(config::Reader& r, std::uint32_t n_dims
   o.gradient_ranges = r.uint("gradient_ranges", 0, 0, 4096,
                              "table ranges per level in the gradient pass, for parallelism (0: per device, 1 on "
                              "CPUs); the gradient is bit-for-bit the same for any value");
+  o.kernel_variant = r.choice("kernel_variant", "auto", {"auto", "simd", "workgroup"},
+                              "which kernels run the encoding: auto (the device's table: SIMD kernels on CPUs, "
+                              "work-group kernels on GPUs), simd or workgroup; RELIT_ENCODING_VARIANT overrides it "
+                              "(docs/encodings.md)");
   if (n_dims != 2 && n_dims != 3)
     r.fail("", "HashGrid encodes 2-D or 3-D positions in [0, 1]^d, but it was given " + std::to_string(n_dims) +
                    " input dims");

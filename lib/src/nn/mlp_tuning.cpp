@@ -3,11 +3,10 @@
 #include <relit/nn/fully_fused_mlp.hpp>
 
 #include <relit/cl/device.hpp>
+#include <relit/cl/kernel_variant.hpp>
 #include <relit/error.hpp>
 
-#include <algorithm>
-#include <cctype>
-#include <cstdlib>
+#include <optional>
 #include <string>
 
 namespace relit::nn {
@@ -70,26 +69,9 @@ const Row kTable[] = {
     {"other device", "", "", 0, Variant::WorkGroup, kAvx2, kWgOther, false},
 };
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
-}
-
-bool vendor_matches(const std::string& vendor, const std::string& fragments) {
-  if (fragments.empty()) return true;
-  const std::string v = lower(vendor);
-  std::size_t start = 0;
-  while (start <= fragments.size()) {
-    const std::size_t end = std::min(fragments.find('|', start), fragments.size());
-    if (v.find(fragments.substr(start, end - start)) != std::string::npos) return true;
-    start = end + 1;
-  }
-  return false;
-}
-
 }  // namespace
 
-const char* FullyFusedMLP::variant_name(Variant v) { return v == Variant::Simd ? "simd" : "workgroup"; }
+const char* FullyFusedMLP::variant_name(Variant v) { return kernel_variant_name(v); }
 
 bool FullyFusedMLP::WorkGroupParams::operator==(const WorkGroupParams& o) const {
   return samples == o.samples && items == o.items && rows == o.rows && cols == o.cols && k_tile == o.k_tile &&
@@ -109,8 +91,7 @@ std::string FullyFusedMLP::KernelChoice::str() const {
 
 FullyFusedMLP::KernelChoice FullyFusedMLP::device_default(const DeviceInfo& info) {
   for (const Row& row : kTable) {
-    if (*row.type && info.type != row.type) continue;
-    if (!vendor_matches(info.vendor, row.vendor)) continue;
+    if (!device_matches(info, row.type, row.vendor)) continue;
     if (info.preferred_vector_width_float < row.min_vector_width) continue;
     KernelChoice c;
     c.variant = row.variant;
@@ -125,12 +106,9 @@ FullyFusedMLP::KernelChoice FullyFusedMLP::device_default(const DeviceInfo& info
 
 FullyFusedMLP::KernelChoice FullyFusedMLP::default_kernels(const DeviceInfo& info) {
   KernelChoice c = device_default(info);
-  const char* env = std::getenv("RELIT_MLP_VARIANT");
-  const std::string v = env ? lower(env) : "";
-  if (v.empty() || v == "auto") return c;
-  if (v != "simd" && v != "workgroup")
-    throw InvalidArgument("RELIT_MLP_VARIANT must be simd, workgroup or auto, got '" + std::string(env) + "'");
-  const Variant want = v == "simd" ? Variant::Simd : Variant::WorkGroup;
+  const std::optional<Variant> env = kernel_variant_from_env("RELIT_MLP_VARIANT");
+  if (!env) return c;
+  const Variant want = *env;
   if (want != c.variant) c.tuned = false;  // a row's tuning is for its own variant
   c.variant = want;
   c.source = "RELIT_MLP_VARIANT";

@@ -1,8 +1,11 @@
 // VolumeRenderer: argument checks and kernel launches (the math is in kernels/render.cl).
 #include <relit/cl/program.hpp>
+#include <relit/log.hpp>
 #include <relit/nn/registry.hpp>
 #include <relit/render/environment.hpp>
 #include <relit/render/volume_renderer.hpp>
+
+#include <algorithm>
 
 namespace relit::render {
 
@@ -42,7 +45,63 @@ VolumeRenderer::VolumeRenderer(const Device& device, const VolumeRendererSetting
                {"N_ENV", std::to_string(settings.n_env_dirs)},
                {"SCATTERING_BRDF", m_brdf ? "1" : "0"},
                {"VISIBILITY_GRADIENT", settings.visibility_gradient ? "1" : "0"}};
+  parse_kernel_variant(settings.kernel_variant, "VolumeRendererSettings::kernel_variant");
   if (m_n_sh) m_sh = nn::create_encoding({{"type", "SphericalHarmonics"}, {"degree", settings.sh_lmax + 1}}, 3);
+  set_kernels(std::nullopt);
+}
+
+void VolumeRenderer::set_kernels(std::optional<KernelVariant> variant, std::optional<WorkGroupParams> params) {
+  if (params && (params->items < 1 || params->items > 1024))
+    throw InvalidArgument("VolumeRenderer::set_kernels: items must be in [1, 1024], got " +
+                          std::to_string(params->items));
+  m_choice = choose(variant, variant ? params : std::nullopt);
+  m_wg_defines = m_defines;
+  m_wg_defines["RAY_ITEMS"] = std::to_string(m_choice.workgroup.items);
+  m_wg_defines["STAGE_DIRS"] = m_choice.workgroup.stage ? "1" : "0";
+}
+
+VolumeRenderer::KernelChoice VolumeRenderer::choose(std::optional<KernelVariant> forced,
+                                                    std::optional<WorkGroupParams> params) const {
+  const DeviceInfo& info = m_device.info();
+  KernelChoice c = default_kernels(info);
+  const KernelChoice row = device_default(info);
+  if (forced) {
+    c.variant = *forced;
+    c.workgroup = params ? *params : row.workgroup;
+    c.source = "set_kernels()";
+  } else if (c.source != "RELIT_RENDER_VARIANT" && m_settings.kernel_variant != "auto") {
+    c.variant = *parse_kernel_variant(m_settings.kernel_variant, "kernel_variant");
+    c.source = "kernel_variant";
+  }
+  c.tuned = row.tuned && c.variant == row.variant && (c.variant == KernelVariant::Simd || c.workgroup == row.workgroup);
+  // Fit the device: a power of two of work-items that divides the samples of a ray (a multiple of 16, so 16
+  // always does), within the device's limit; staging where the shared directions fit half the local memory.
+  WorkGroupParams& p = c.workgroup;
+  const std::uint32_t limit = static_cast<std::uint32_t>(std::min<std::size_t>(info.max_work_group_size, 1024));
+  std::uint32_t items = 1;
+  while (items * 2 <= std::min(p.items, limit) && m_settings.n_samples % (items * 2) == 0) items *= 2;
+  p.items = items;
+  const std::uint64_t indirect = m_settings.closed_form_indirect ? 0 : std::uint64_t(m_settings.n_dirs) * (3 + m_n_sh);
+  const std::uint64_t staged = (indirect + 6ull * m_settings.n_env_dirs) * sizeof(float);
+  p.stage = p.stage && staged <= info.local_memory / 2;
+  if (c.variant == KernelVariant::Simd) return c;
+  Defines d = m_defines;
+  d["RAY_ITEMS"] = std::to_string(p.items);
+  d["STAGE_DIRS"] = p.stage ? "1" : "0";
+  const Program program = m_device.program("render_wg.cl", d);
+  std::string why;
+  for (const char* name :
+       {"render_wg_radiance", "render_wg_radiance_backward", "render_wg_composite", "render_wg_composite_backward"})
+    if (program.kernel(name).max_work_group_size() < p.items)
+      why = std::string("the compiled ") + name + " accepts fewer than " + std::to_string(p.items) + " work-items";
+  if (!why.empty()) {  // a working renderer rather than an error: the SIMD kernels run on every device
+    log_warning("VolumeRenderer: the work-group kernels (" + p.str() + ") do not fit " + info.name + ": " + why +
+                "; running the SIMD kernels (set kernel_variant or RELIT_RENDER_VARIANT to simd to silence this)");
+    c.variant = KernelVariant::Simd;
+    c.tuned = false;
+    c.source += ", work-group kernels did not fit";
+  }
+  return c;
 }
 
 void VolumeRenderer::view_basis(const Buffer<float>& rays, std::uint32_t n_rays, nn::BatchMatrix& out) const {
@@ -135,6 +194,11 @@ void VolumeRenderer::forward(const Buffer<float>& rays, std::uint32_t n_rays, co
     m_device.kernel("render.cl", "render_radiance_brdf", m_defines)
         .args(n, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env), radiance.data())
         .launch(n, 64);
+  } else if (workgroup()) {  // one work-group per ray
+    m_device.kernel("render_wg.cl", "render_wg_radiance", m_wg_defines)
+        .args(n_rays, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env),
+              radiance.data())
+        .launch(std::size_t(n_rays) * m_choice.workgroup.items, m_choice.workgroup.items);
   } else {  // one work-item per tile of 16 samples
     const auto n_tiles = static_cast<std::uint32_t>(props.batch() / nn::kBatchTile);
     m_device.kernel("render.cl", "render_radiance", m_defines)
@@ -142,9 +206,14 @@ void VolumeRenderer::forward(const Buffer<float>& rays, std::uint32_t n_rays, co
               radiance.data())
         .launch(n_tiles, 16);
   }
-  m_device.kernel("render.cl", "composite", m_defines)
-      .args(n_rays, rays, delta, props.data(), radiance.data(), color, transmittance)
-      .launch(n_rays, 16);
+  if (workgroup())
+    m_device.kernel("render_wg.cl", "render_wg_composite", m_wg_defines)
+        .args(n_rays, rays, delta, props.data(), radiance.data(), color, transmittance)
+        .launch(std::size_t(n_rays) * m_choice.workgroup.items, m_choice.workgroup.items);
+  else
+    m_device.kernel("render.cl", "composite", m_defines)
+        .args(n_rays, rays, delta, props.data(), radiance.data(), color, transmittance)
+        .launch(n_rays, 16);
 }
 
 void VolumeRenderer::backward(const Buffer<float>& rays, std::uint32_t n_rays, const Buffer<float>& t,
@@ -157,9 +226,23 @@ void VolumeRenderer::backward(const Buffer<float>& rays, std::uint32_t n_rays, c
     throw InvalidArgument("VolumeRenderer::backward: gradient buffers have the wrong shape");
   d_props.resize(props.batch());
   d_radiance.resize(props.batch());
-  m_device.kernel("render.cl", "composite_backward", m_defines)
-      .args(n_rays, rays, delta, props.data(), radiance.data(), color, d_color, d_props.data(), d_radiance.data())
-      .launch(n_rays, 16);
+  if (workgroup()) {
+    const std::size_t items = m_choice.workgroup.items;
+    m_device.kernel("render_wg.cl", "render_wg_composite_backward", m_wg_defines)
+        .args(n_rays, rays, delta, props.data(), radiance.data(), color, d_color, d_props.data(), d_radiance.data())
+        .launch(n_rays * items, items);
+    if (!m_brdf) {
+      m_device.kernel("render_wg.cl", "render_wg_radiance_backward", m_wg_defines)
+          .args(n_rays, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env),
+                d_radiance.data(), d_props.data())
+          .launch(n_rays * items, items);
+      return;
+    }
+  } else {
+    m_device.kernel("render.cl", "composite_backward", m_defines)
+        .args(n_rays, rays, delta, props.data(), radiance.data(), color, d_color, d_props.data(), d_radiance.data())
+        .launch(n_rays, 16);
+  }
   const std::uint32_t n = m_brdf ? props.batch() : static_cast<std::uint32_t>(props.batch() / nn::kBatchTile);
   m_device.kernel("render.cl", m_brdf ? "render_radiance_brdf_backward" : "render_radiance_backward", m_defines)
       .args(n, rays, t, props.data(), dirs.data(), sh_basis.data(), env_dirs(env), env_weights(env), d_radiance.data(),

@@ -12,10 +12,13 @@
 // assembles one MLP input matrix without copies.
 #pragma once
 
+#include <relit/cl/kernel_variant.hpp>
 #include <relit/nn/module.hpp>
 
 #include <array>
 #include <memory>
+#include <optional>
+#include <string>
 #include <vector>
 
 namespace relit::nn {
@@ -114,6 +117,12 @@ class SphericalHarmonicsEncoding final : public Encoding {
 
 /// Multiresolution hash encoding over [0, 1]^d, d = 2 or 3 (inputs outside are clamped). Output column
 /// level * n_features_per_level + f. See kernels/enc_hashgrid.cl for the exact grid convention.
+///
+/// Two kernel variants compute the same encoding (docs/encodings.md, "Kernel variants"): SIMD kernels for CPUs
+/// (kernels/enc_hashgrid.cl) and work-group kernels for GPUs (kernels/enc_hashgrid_wg.cl), chosen per device
+/// from a table (lib/src/nn/encodings/hash_grid_tuning.cpp), overridable by the "kernel_variant" key and the
+/// RELIT_ENCODING_VARIANT environment variable. Both reduce the parameter gradient in a fixed order: it is
+/// bit-for-bit reproducible on one device for one kernel choice.
 class HashGridEncoding final : public Encoding {
  public:
   struct Options {
@@ -125,7 +134,37 @@ class HashGridEncoding final : public Encoding {
     /// Table ranges per level in the parameter-gradient pass; 0 = per device (1 on CPUs). The gradient is
     /// bit-for-bit the same for any value: only the parallelism changes.
     std::uint32_t gradient_ranges = 0;
+    /// "auto" (the device's table row), "simd" or "workgroup"; RELIT_ENCODING_VARIANT overrides it.
+    std::string kernel_variant = "auto";
   };
+  /// Parameters of the work-group kernels (the -D parameters of kernels/enc_hashgrid_wg.cl). Any valid set
+  /// gives the same results (the parameter gradient bit for bit); it only changes the speed.
+  struct WorkGroupParams {
+    std::uint32_t items = 64;         ///< WG_ITEMS: samples (of one level) per group of the forward, 1..1024
+    std::uint32_t grad_items = 64;    ///< GRAD_ITEMS: table ranges per group of the parameter gradient, 1..1024
+    std::uint32_t grad_chunk = 64;    ///< GRAD_CHUNK: samples staged per step of the parameter gradient, a
+                                      ///< multiple of 16 in 16..1024 (lowered to fit the device's local memory)
+    std::uint32_t grad_groups = 2;    ///< parameter-gradient groups per compute unit, all levels together (at
+                                      ///< least one per level), 1..256
+    std::uint32_t input_samples = 4;  ///< IN_S: samples per group of the input gradient (x n_levels work-items,
+                                      ///< lowered to fit the device's work-group limit), 1..256
+    bool operator==(const WorkGroupParams& o) const;
+    std::string str() const;  ///< "N64 G64/C64/x2 I4"
+  };
+  /// What runs on a device: the variant, the work-group parameters, and where the choice came from.
+  struct KernelChoice {
+    KernelVariant variant = KernelVariant::Simd;
+    WorkGroupParams workgroup;  ///< the work-group kernels' parameters (as lowered to fit, from kernel_choice())
+    bool tuned = false;         ///< the parameters were measured on such a device (false: a default)
+    std::string source;         ///< "table: NVIDIA GPU", "RELIT_ENCODING_VARIANT", "kernel_variant", ...
+    std::string str() const;    ///< "workgroup N256 G128/C128/x2 I8 (table: NVIDIA GPU, untuned)"
+  };
+  /// The device's row of the tuning table: CPUs run the SIMD kernels, GPUs and other devices the work-group
+  /// kernels, with parameters per vendor.
+  static KernelChoice device_default(const DeviceInfo& info);
+  /// device_default() with RELIT_ENCODING_VARIANT (simd, workgroup or auto) applied: what an encoding whose
+  /// kernel_variant is "auto" runs. Throws InvalidArgument on another value.
+  static KernelChoice default_kernels(const DeviceInfo& info);
   /// One level's grid and its part of the parameter vector.
   struct Level {
     float scale;           ///< p = x * scale + 0.5 in vertex units
@@ -157,11 +196,21 @@ class HashGridEncoding final : public Encoding {
   /// Table ranges per level in the parameter-gradient pass on `device` (Options::gradient_ranges, or 1 on
   /// CPUs and enough to occupy a GPU otherwise).
   std::uint32_t gradient_ranges(const Device& device) const;
+  /// Runs `variant` (with `params` for the work-group kernels, else the device row's) whatever the config and
+  /// environment say, for launches from now on (tests, benchmarks); std::nullopt restores the normal choice.
+  /// Throws InvalidArgument on parameters out of range.
+  void set_kernels(std::optional<KernelVariant> variant, std::optional<WorkGroupParams> params = std::nullopt);
+  /// What the kernels use on `device`: set_kernels(), else RELIT_ENCODING_VARIANT, else the kernel_variant
+  /// option, else the device's table row; the work-group parameters as lowered to fit the device.
+  KernelChoice kernel_choice(const Device& device) const;
 
  private:
   Defines defines(const Device& device) const;
+  Defines workgroup_defines(const Device& device, const WorkGroupParams& p) const;
   std::uint32_t m_dims;
   Options m_options;
+  std::optional<KernelVariant> m_forced_variant;  // set_kernels()
+  std::optional<WorkGroupParams> m_forced_params;
   std::vector<Level> m_levels;
   std::uint32_t m_n_params = 0;
 };

@@ -23,6 +23,7 @@
 // input instead of saving them (docs/networks.md).
 #pragma once
 
+#include <relit/cl/kernel_variant.hpp>
 #include <relit/nn/module.hpp>
 
 #include <memory>
@@ -123,7 +124,7 @@ class FullyFusedMLP final : public Network {
   /// (a work-item owns 16-sample tiles as float16 lanes; no barriers, no local memory: CPUs) and the
   /// work-group kernels of kernels/mlp_wg.cl (a work-group owns a tile of samples whose activations stay in
   /// local memory across the layers, weights staged through local memory: GPUs).
-  enum class Variant : std::uint8_t { Simd, WorkGroup };
+  using Variant = KernelVariant;
   static const char* variant_name(Variant v);  ///< "simd", "workgroup"
 
   /// Parameters of the work-group kernels (the -D parameters of kernels/mlp_wg.cl). Any valid set gives the

@@ -19,11 +19,13 @@
 
 #include <relit/parallel.hpp>
 #include <relit/cl/buffer.hpp>
+#include <relit/cl/kernel_variant.hpp>
 #include <relit/layout.clh>
 #include <relit/nn/batch.hpp>
 #include <relit/nn/module.hpp>
 
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <cstdint>
@@ -69,11 +71,47 @@ struct VolumeRendererSettings {
   /// decides what to do with it (the shadow gradient, relit/method/medium.hpp); the renderer still
   /// gives zero to the environment's visibility columns.
   bool visibility_gradient = false;
+  /// Which kernels light and composite the samples: "auto" (the device's table row: SIMD kernels on CPUs,
+  /// work-group kernels on GPUs), "simd" or "workgroup"; the environment variable RELIT_RENDER_VARIANT
+  /// overrides it (docs/renderer.md, "Kernel variants").
+  std::string kernel_variant = "auto";
 };
 
 class VolumeRenderer {
  public:
   VolumeRenderer(const Device& device, const VolumeRendererSettings& settings);
+
+  /// Parameters of the work-group kernels (kernels/render_wg.cl: one work-group per ray). Any valid set gives
+  /// the same results up to float rounding; it only changes the speed.
+  struct WorkGroupParams {
+    std::uint32_t items = 64;  ///< RAY_ITEMS: work-items per ray, 1..1024 (lowered to a power of two that
+                               ///< divides n_samples, within the device's limit)
+    bool stage = true;         ///< STAGE_DIRS: stage the indirect and environment directions (and the SH basis)
+                               ///< in local memory, where they fit in half of it
+    bool operator==(const WorkGroupParams& o) const;
+    std::string str() const;  ///< "N64 staged"
+  };
+  /// What runs: the variant, the work-group parameters, and where the choice came from.
+  struct KernelChoice {
+    KernelVariant variant = KernelVariant::Simd;
+    WorkGroupParams workgroup;  ///< as lowered to fit (kernel_choice())
+    bool tuned = false;         ///< the parameters were measured on such a device (false: a default)
+    std::string source;         ///< "table: NVIDIA GPU", "RELIT_RENDER_VARIANT", "kernel_variant", ...
+    std::string str() const;    ///< "workgroup N64 staged (table: NVIDIA GPU, untuned)"
+  };
+  /// The device's row of the renderer's tuning table (lib/src/render/render_tuning.cpp).
+  static KernelChoice device_default(const DeviceInfo& info);
+  /// device_default() with RELIT_RENDER_VARIANT (simd, workgroup or auto) applied: what a renderer whose
+  /// kernel_variant is "auto" runs. Throws InvalidArgument on another value.
+  static KernelChoice default_kernels(const DeviceInfo& info);
+  /// What this renderer runs: set_kernels(), else RELIT_RENDER_VARIANT (read at construction), else the
+  /// settings' kernel_variant, else the device's row; the parameters as lowered to fit. With scattering "brdf"
+  /// the per-sample BRDF kernels of render.cl light the samples in either variant (they are one work-item per
+  /// sample already); the variant chooses the compositing kernels.
+  const KernelChoice& kernel_choice() const { return m_choice; }
+  /// Runs `variant` (with `params`, else the device row's) whatever the settings and environment say (tests,
+  /// benchmarks); std::nullopt restores the normal choice. Throws InvalidArgument on parameters out of range.
+  void set_kernels(std::optional<KernelVariant> variant, std::optional<WorkGroupParams> params = std::nullopt);
 
   const VolumeRendererSettings& settings() const { return m_settings; }
   /// (sh_lmax + 1)^2, or 0 without indirect light.
@@ -123,11 +161,15 @@ class VolumeRenderer {
  private:
   void check(std::uint32_t n_rays, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
              const nn::BatchMatrix& sh_basis, const EnvironmentSamples* env, const char* what) const;
+  KernelChoice choose(std::optional<KernelVariant> forced, std::optional<WorkGroupParams> params) const;
+  bool workgroup() const { return m_choice.variant == KernelVariant::WorkGroup; }
   Device m_device;
   VolumeRendererSettings m_settings;
   std::uint32_t m_n_sh;
   bool m_brdf;
   Defines m_defines;
+  KernelChoice m_choice;
+  Defines m_wg_defines;                 // m_defines with the work-group kernels' parameters
   std::shared_ptr<nn::Encoding> m_sh;   // evaluates view_basis(); absent without indirect light
   mutable nn::BatchMatrix m_view_dirs;  // view_basis() scratch, reused while the ray count does not grow
 };

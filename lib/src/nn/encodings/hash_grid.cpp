@@ -2,9 +2,12 @@
 // the reasoning behind their work order and gradient scheme are in kernels/enc_hashgrid.cl.
 #include "common.hpp"
 
+#include <relit/log.hpp>
 #include <relit/nn/encodings.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <mutex>
 #include <sstream>
 
 namespace relit::nn {
@@ -45,6 +48,7 @@ HashGridEncoding::HashGridEncoding(std::uint32_t n_input_dims, Options o) : m_di
   if (!(o.per_level_scale >= 1.0f && o.per_level_scale <= 8.0f))
     throw InvalidArgument(who + "per_level_scale must be in [1, 8]");
   if (o.gradient_ranges > 4096) throw InvalidArgument(who + "gradient_ranges must be in [0, 4096]");
+  parse_kernel_variant(o.kernel_variant, who + "kernel_variant");
 
   const std::uint64_t table = 1ull << o.log2_hashmap_size;
   std::uint64_t offset = 0;
@@ -79,7 +83,8 @@ Json HashGridEncoding::hyperparams() const {
           {"log2_hashmap_size", m_options.log2_hashmap_size},
           {"base_resolution", m_options.base_resolution},
           {"per_level_scale", m_options.per_level_scale},
-          {"gradient_ranges", m_options.gradient_ranges}};
+          {"gradient_ranges", m_options.gradient_ranges},
+          {"kernel_variant", m_options.kernel_variant}};
 }
 
 void HashGridEncoding::initialize_params(float* out, std::uint64_t seed) const {
@@ -119,11 +124,98 @@ Defines HashGridEncoding::defines(const Device& device) const {
   return d;
 }
 
+void HashGridEncoding::set_kernels(std::optional<KernelVariant> variant, std::optional<WorkGroupParams> params) {
+  if (params) {
+    const WorkGroupParams& p = *params;
+    auto check = [](bool ok, const std::string& what) {
+      if (!ok) throw InvalidArgument("HashGridEncoding::set_kernels: " + what);
+    };
+    check(p.items >= 1 && p.items <= 1024, "items must be in [1, 1024]");
+    check(p.grad_items >= 1 && p.grad_items <= 1024, "grad_items must be in [1, 1024]");
+    check(p.grad_chunk >= 16 && p.grad_chunk <= 1024 && p.grad_chunk % 16 == 0,
+          "grad_chunk must be a multiple of 16 in [16, 1024]");
+    check(p.grad_groups >= 1 && p.grad_groups <= 256, "grad_groups must be in [1, 256]");
+    check(p.input_samples >= 1 && p.input_samples <= 256, "input_samples must be in [1, 256]");
+  }
+  m_forced_variant = variant;
+  m_forced_params = variant ? params : std::nullopt;
+}
+
+HashGridEncoding::KernelChoice HashGridEncoding::kernel_choice(const Device& device) const {
+  const DeviceInfo& info = device.info();
+  KernelChoice c = default_kernels(info);
+  const KernelChoice row = device_default(info);
+  if (m_forced_variant) {
+    c.variant = *m_forced_variant;
+    c.workgroup = m_forced_params ? *m_forced_params : row.workgroup;
+    c.source = "set_kernels()";
+  } else if (c.source != "RELIT_ENCODING_VARIANT" && m_options.kernel_variant != "auto") {
+    c.variant = *parse_kernel_variant(m_options.kernel_variant, "kernel_variant");
+    c.source = "kernel_variant";
+  }
+  c.tuned = row.tuned && c.variant == row.variant && (c.variant == KernelVariant::Simd || c.workgroup == row.workgroup);
+  if (c.variant == KernelVariant::Simd) return c;
+  // Fit the device: work-group sizes within its limit, the gradient's staged pairs within its local memory.
+  WorkGroupParams& p = c.workgroup;
+  const std::size_t max_items = std::max<std::size_t>(1, info.max_work_group_size);
+  const std::uint32_t levels = m_options.n_levels, feats = m_options.n_features_per_level;
+  p.items = static_cast<std::uint32_t>(std::min<std::size_t>(p.items, max_items));
+  p.grad_items = static_cast<std::uint32_t>(std::min<std::size_t>(p.grad_items, max_items));
+  auto staged_bytes = [&](std::uint32_t chunk) { return std::uint64_t(chunk) * (1u << m_dims) * (1 + feats) * 4; };
+  while (p.grad_chunk > 16 && staged_bytes(p.grad_chunk) > info.local_memory) p.grad_chunk -= 16;
+  while (p.input_samples > 1 && std::size_t(p.input_samples) * levels > max_items) --p.input_samples;
+  std::string why;
+  if (staged_bytes(p.grad_chunk) > info.local_memory)
+    why = "16 staged samples need " + std::to_string(staged_bytes(16)) + " bytes of local memory";
+  else if (levels > max_items)
+    why = "the input gradient needs work-groups of " + std::to_string(levels) + " work-items";
+  if (why.empty()) {
+    const Program program = device.program("enc_hashgrid_wg.cl", workgroup_defines(device, p));
+    if (program.kernel("hashgrid_wg_forward").max_work_group_size() < p.items ||
+        program.kernel("hashgrid_wg_backward_params").max_work_group_size() < p.grad_items ||
+        program.kernel("hashgrid_wg_backward_input").max_work_group_size() < std::size_t(p.input_samples) * levels)
+      why = "the compiled kernels accept smaller work-groups";
+  }
+  if (!why.empty()) {  // a working encoding rather than an error: the SIMD kernels run on every device
+    static std::once_flag warned;
+    std::call_once(warned, [&] {
+      log_warning("HashGrid encoding: the work-group kernels (" + p.str() + ") do not fit " + info.name + ": " + why +
+                  "; running the SIMD kernels (set kernel_variant or RELIT_ENCODING_VARIANT to simd to silence this)");
+    });
+    c.variant = KernelVariant::Simd;
+    c.tuned = false;
+    c.source += ", work-group kernels did not fit";
+  }
+  return c;
+}
+
+Defines HashGridEncoding::workgroup_defines(const Device& device, const WorkGroupParams& p) const {
+  Defines d = defines(device);
+  d.erase("N_RANGES");
+  d.erase("PREFETCH");
+  d["WG_ITEMS"] = std::to_string(p.items);
+  d["GRAD_ITEMS"] = std::to_string(p.grad_items);
+  d["GRAD_CHUNK"] = std::to_string(p.grad_chunk);
+  d["IN_S"] = std::to_string(p.input_samples);
+  return d;
+}
+
 void HashGridEncoding::forward(const Device& device, ConstParamSlice params, const BatchMatrix& input,
                                std::uint32_t in_col, BatchMatrix& output, std::uint32_t out_col, Workspace*) const {
   detail::check_matrix("HashGrid::forward", "input", input, in_col, m_dims);
   detail::check_matrix("HashGrid::forward", "output", output, out_col, n_output_dims(), &input);
   detail::check_slice("HashGrid::forward", "parameter", params, m_n_params);
+  const KernelChoice choice = kernel_choice(device);
+  if (choice.variant == KernelVariant::WorkGroup) {  // one work-item per (sample, level), level-major
+    const WorkGroupParams& p = choice.workgroup;
+    Kernel k = device.kernel("enc_hashgrid_wg.cl", "hashgrid_wg_forward", workgroup_defines(device, p));
+    const std::size_t per_level = round_up(input.padded(), p.items);
+    k.args(input.padded(), static_cast<std::uint32_t>(per_level), *params.buffer,
+           static_cast<std::uint32_t>(params.offset), input.data(), input.cols(), in_col, output.data(), output.cols(),
+           out_col)
+        .launch(per_level * m_levels.size(), p.items);
+    return;
+  }
   Kernel k = device.kernel("enc_hashgrid.cl", "hashgrid_forward", defines(device));
   const std::size_t items = static_cast<std::size_t>(detail::n_tiles(input)) * m_levels.size();
   k.args(detail::n_tiles(input), *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(), input.cols(),
@@ -136,9 +228,37 @@ void HashGridEncoding::backward(const Device& device, ConstParamSlice params, co
                                 ParamSlice grads, bool accumulate, BatchMatrix* d_input, Workspace*) const {
   detail::check_matrix("HashGrid::backward", "input", input, in_col, m_dims);
   detail::check_matrix("HashGrid::backward", "d_output", d_output, out_col, n_output_dims(), &input);
+  if (grads.buffer) detail::check_slice("HashGrid::backward", "gradient", grads, m_n_params);
+  if (d_input) {
+    detail::check_matrix("HashGrid::backward", "d_input", *d_input, in_col, m_dims, &input);
+    detail::check_slice("HashGrid::backward", "parameter", params, m_n_params);
+  }
+  const KernelChoice choice = kernel_choice(device);
+  if (choice.variant == KernelVariant::WorkGroup) {
+    const WorkGroupParams& p = choice.workgroup;
+    const Defines defs = workgroup_defines(device, p);
+    const std::uint32_t levels = static_cast<std::uint32_t>(m_levels.size());
+    if (grads.buffer) {
+      // Enough groups to occupy the device, at least one per level (each group rescans the batch: no more).
+      const std::uint32_t cus = std::max(1u, device.info().compute_units);
+      const std::uint32_t groups = std::max(1u, (cus * p.grad_groups + levels - 1) / levels);
+      Kernel k = device.kernel("enc_hashgrid_wg.cl", "hashgrid_wg_backward_params", defs);
+      k.args(input.batch(), groups, input.data(), input.cols(), in_col, d_output.data(), d_output.cols(), out_col,
+             *grads.buffer, static_cast<std::uint32_t>(grads.offset), static_cast<std::uint32_t>(accumulate ? 0 : 1))
+          .launch(std::size_t(groups) * levels * p.grad_items, p.grad_items);
+    }
+    if (d_input) {
+      Kernel k = device.kernel("enc_hashgrid_wg.cl", "hashgrid_wg_backward_input", defs);
+      const std::size_t n_groups = (input.padded() + p.input_samples - 1) / p.input_samples;
+      const std::size_t local = std::size_t(p.input_samples) * levels;
+      k.args(input.padded(), *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(), input.cols(),
+             in_col, d_output.data(), d_output.cols(), out_col, d_input->data(), d_input->cols())
+          .launch(n_groups * local, local);
+    }
+    return;
+  }
   const Defines defs = defines(device);
   if (grads.buffer) {
-    detail::check_slice("HashGrid::backward", "gradient", grads, m_n_params);
     Kernel k = device.kernel("enc_hashgrid.cl", "hashgrid_backward_params", defs);
     const std::size_t items = m_levels.size() * static_cast<std::size_t>(gradient_ranges(device));
     // One (level, range) per work-group on a CPU, so that the levels spread over the cores.
@@ -149,8 +269,6 @@ void HashGridEncoding::backward(const Device& device, ConstParamSlice params, co
         .launch(items, local);
   }
   if (d_input) {
-    detail::check_matrix("HashGrid::backward", "d_input", *d_input, in_col, m_dims, &input);
-    detail::check_slice("HashGrid::backward", "parameter", params, m_n_params);
     Kernel k = device.kernel("enc_hashgrid.cl", "hashgrid_backward_input", defs);
     k.args(detail::n_tiles(input), *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(),
            input.cols(), in_col, d_output.data(), d_output.cols(), out_col, d_input->data(), d_input->cols())
