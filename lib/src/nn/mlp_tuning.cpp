@@ -37,10 +37,14 @@ struct Row {
 //  - AVX-512 CPUs (16-float native vectors, 32 zmm registers): a float16 is one register and two loads per
 //    cycle feed two FMAs, so a block must reuse each load: four tiles per work-item (every weight broadcast
 //    feeds four FMAs) and 6 outputs per block (every activation load feeds six; 24 accumulators), float16 dW
-//    accumulators in 5 x 5 blocks, and the fused training kernel for small networks, whose separate
-//    backward kernels are bound by memory traffic (2-core Zen 5, docs/networks.md).
+//    accumulators in 8 x 3 blocks (the layers' 16, 64 and 256 outputs are multiples of 8, their 33 and 65
+//    inputs with the bias multiples of 3: no padded rows, against 5 x 5's fifth of wasted output-layer
+//    blocks; 2 % faster at width 64 and 3-10 % at width 256 than 5 x 5), and the fused training kernel for
+//    small networks, whose separate backward kernels are bound by memory traffic, in groups of 16 tiles
+//    (each dW accumulator load and store feeds 16 FMAs: 4 % faster than groups of 8 at width 64). A/B runs
+//    on a quiet 2-core Zen 5, docs/networks.md.
 constexpr Blocking kAvx2{};
-constexpr Blocking kAvx512{4, 6, 6, 16, 5, 5, 20, 16384, 8};
+constexpr Blocking kAvx512{4, 6, 6, 16, 8, 3, 24, 16384, 16};
 
 // Work-group parameters: samples, items, rows x cols register block, k_tile, dW tile / block / samples, dW
 // chunk. None of the GPU rows is tuned: no GPU was available to measure on; they are starting points, based on:
