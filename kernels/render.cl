@@ -29,33 +29,7 @@
 #include "geometry.clh"
 #include "layout.clh"
 
-#ifndef N_SAMPLES
-#define N_SAMPLES 64
-#endif
-#ifndef N_SH
-#define N_SH 36
-#endif
-#ifndef INDIRECT_MODE
-#define INDIRECT_MODE 0
-#endif
-#ifndef N_DIRS
-#define N_DIRS 64
-#endif
-#ifndef N_ENV
-#define N_ENV 0
-#endif
-#ifndef SCATTERING_BRDF
-#define SCATTERING_BRDF 0
-#endif
-// VISIBILITY_GRADIENT = 1: the backward passes write dL/dV toward the point light into column 5 (the shadow
-// gradient of the baselines, docs/baselines.md); 0: zero there, the gradient isolation of appendix C.
-#ifndef VISIBILITY_GRADIENT
-#define VISIBILITY_GRADIENT 0
-#endif
-#define ENV_COL (6 + 3 * N_SH)
-#define NORMAL_COL (ENV_COL + N_ENV)
-#define PROP_COLS (NORMAL_COL + 3 * SCATTERING_BRDF)
-#define INV_4PI 0.07957747154594767f
+#include "render_config.clh"
 
 // HG phase and its derivative in g, for mu = w_o . w_i (both pointing away from the sample).
 inline float16 hg_phase16(float16 g, float16 mu) {

@@ -21,27 +21,8 @@
 // the timing of the work-items: the results are bit-for-bit reproducible.
 #include "layout.clh"
 
-#ifndef N_SAMPLES
-#define N_SAMPLES 64
-#endif
-#ifndef N_SH
-#define N_SH 36
-#endif
-#ifndef INDIRECT_MODE
-#define INDIRECT_MODE 0
-#endif
-#ifndef N_DIRS
-#define N_DIRS 64
-#endif
-#ifndef N_ENV
-#define N_ENV 0
-#endif
-#ifndef SCATTERING_BRDF
-#define SCATTERING_BRDF 0
-#endif
-#ifndef VISIBILITY_GRADIENT
-#define VISIBILITY_GRADIENT 0
-#endif
+#include "render_config.clh"
+
 #ifndef RAY_ITEMS
 #define RAY_ITEMS 64
 #endif
@@ -52,10 +33,6 @@
 #error "RAY_ITEMS must be a power of two dividing N_SAMPLES"
 #endif
 #define SEGMENTS (N_SAMPLES / RAY_ITEMS)
-#define ENV_COL (6 + 3 * N_SH)
-#define NORMAL_COL (ENV_COL + N_ENV)
-#define PROP_COLS (NORMAL_COL + 3 * SCATTERING_BRDF)
-#define INV_4PI 0.07957747154594767f
 #define INDIRECT_SUM (N_SH > 0 && INDIRECT_MODE == 0)
 #define STAGED_INDIRECT (STAGE_DIRS && INDIRECT_SUM)
 #define STAGED_ENV (STAGE_DIRS && N_ENV > 0)

@@ -449,19 +449,11 @@ INSTANTIATE_TEST_SUITE_P(EncHashGrid, HashGridVariant, ::testing::Values("simd",
                          [](const ::testing::TestParamInfo<std::string>& info) { return info.param; });
 
 TEST(EncHashGrid, KernelVariantFollowsTheTableConfigAndEnvironment) {
-  // The test sets RELIT_ENCODING_VARIANT itself; a value the suite runs under is put back at the end.
-  const char* outer = std::getenv("RELIT_ENCODING_VARIANT");
-  const std::string saved = outer ? outer : "";
-  ::unsetenv("RELIT_ENCODING_VARIANT");
-  DeviceInfo cpu, nvidia, amd, intel, other;
-  cpu.type = "cpu";
-  cpu.vendor = "GenuineIntel";
-  nvidia.type = amd.type = intel.type = "gpu";
-  nvidia.vendor = "NVIDIA Corporation";
-  amd.vendor = "Advanced Micro Devices, Inc.";
-  intel.vendor = "Intel(R) Corporation";
-  other.type = "accelerator";
-  other.vendor = "Example";
+  // The test sets RELIT_ENCODING_VARIANT itself; a value the suite runs under is put back at the end (ScopedEnv).
+  std::optional<test::ScopedEnv> env;
+  env.emplace("RELIT_ENCODING_VARIANT", std::nullopt);
+  const test::TableDevices d;
+  const DeviceInfo &cpu = d.cpu, &nvidia = d.nvidia, &amd = d.amd, &intel = d.intel, &other = d.other;
   EXPECT_EQ(HashGridEncoding::device_default(cpu).variant, KernelVariant::Simd);
   EXPECT_TRUE(HashGridEncoding::device_default(cpu).tuned);
   for (const DeviceInfo* gpu : {&nvidia, &amd, &intel, &other}) {
@@ -497,10 +489,7 @@ TEST(EncHashGrid, KernelVariantFollowsTheTableConfigAndEnvironment) {
   EXPECT_EQ(HashGridEncoding::default_kernels(nvidia).variant, KernelVariant::Simd);
   ::setenv("RELIT_ENCODING_VARIANT", "gpu", 1);
   EXPECT_THROW(HashGridEncoding::default_kernels(cpu), InvalidArgument);
-  if (outer)
-    ::setenv("RELIT_ENCODING_VARIANT", saved.c_str(), 1);
-  else
-    ::unsetenv("RELIT_ENCODING_VARIANT");
+  env.reset();
 
   EXPECT_THROW(wg->set_kernels(KernelVariant::WorkGroup, WorkGroupParams{64, 64, 40, 2, 4}), InvalidArgument);
   EXPECT_THROW(wg->set_kernels(KernelVariant::WorkGroup, WorkGroupParams{0, 64, 64, 2, 4}), InvalidArgument);

@@ -439,20 +439,12 @@ TEST(FullyFusedMLP, BlockingFollowsTheDevice) {
 
 TEST(FullyFusedMLP, KernelVariantFollowsTheTableConfigAndEnvironment) {
   using Variant = FullyFusedMLP::Variant;
-  // The test sets RELIT_MLP_VARIANT itself; a value the suite runs under is put back at the end.
-  const char* outer = std::getenv("RELIT_MLP_VARIANT");
-  const std::string saved = outer ? outer : "";
-  ::unsetenv("RELIT_MLP_VARIANT");
-  DeviceInfo cpu, nvidia, amd, intel, other;
-  cpu.type = "cpu";
-  cpu.vendor = "AuthenticAMD";
-  cpu.preferred_vector_width_float = 16;
-  nvidia.type = amd.type = intel.type = "gpu";
-  nvidia.vendor = "NVIDIA Corporation";
-  amd.vendor = "Advanced Micro Devices, Inc.";
-  intel.vendor = "Intel(R) Corporation";
-  other.type = "accelerator";
-  other.vendor = "Example";
+  // The test sets RELIT_MLP_VARIANT itself; a value the suite runs under is put back at the end (ScopedEnv).
+  std::optional<test::ScopedEnv> env;
+  env.emplace("RELIT_MLP_VARIANT", std::nullopt);
+  test::TableDevices d;
+  d.cpu.preferred_vector_width_float = 16;  // an AVX-512 CPU
+  const DeviceInfo &cpu = d.cpu, &nvidia = d.nvidia, &amd = d.amd, &intel = d.intel, &other = d.other;
   const auto c = FullyFusedMLP::device_default(cpu);
   EXPECT_EQ(c.variant, Variant::Simd);
   EXPECT_TRUE(c.tuned);
@@ -488,10 +480,7 @@ TEST(FullyFusedMLP, KernelVariantFollowsTheTableConfigAndEnvironment) {
   EXPECT_EQ(FullyFusedMLP::default_kernels(nvidia).variant, Variant::Simd);
   ::setenv("RELIT_MLP_VARIANT", "gpu", 1);
   EXPECT_THROW(FullyFusedMLP::default_kernels(cpu), InvalidArgument);
-  if (outer)
-    ::setenv("RELIT_MLP_VARIANT", saved.c_str(), 1);
-  else
-    ::unsetenv("RELIT_MLP_VARIANT");
+  env.reset();
 
   EXPECT_THROW(wg.net->set_workgroup(WorkGroupParams{40, 64, 4, 4, 16, 32, 4, 16, 2048}), InvalidArgument);
   EXPECT_THROW(wg.net->set_workgroup(WorkGroupParams{64, 64, 4, 4, 16, 30, 4, 16, 2048}), InvalidArgument);

@@ -109,6 +109,22 @@ class ScopedEnv {
   std::optional<std::string> m_old;
 };
 
+/// One device description per kind of row of the kernel tables (relit/cl/kernel_variant.hpp): a CPU, NVIDIA,
+/// AMD and Intel GPUs, and another accelerator.
+struct TableDevices {
+  DeviceInfo cpu, nvidia, amd, intel, other;
+  TableDevices() {
+    cpu.type = "cpu";
+    cpu.vendor = "GenuineIntel";
+    nvidia.type = amd.type = intel.type = "gpu";
+    nvidia.vendor = "NVIDIA Corporation";
+    amd.vendor = "Advanced Micro Devices, Inc.";
+    intel.vendor = "Intel(R) Corporation";
+    other.type = "accelerator";
+    other.vendor = "Example";
+  }
+};
+
 /// A fresh empty directory under the system temp dir, removed at destruction.
 class TempDir {
  public:

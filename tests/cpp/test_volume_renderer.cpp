@@ -649,19 +649,11 @@ TEST(VolumeRenderer, WorkGroupKernelsAreBitForBitDeterministic) {
 }
 
 TEST(VolumeRenderer, KernelVariantFollowsTheTableSettingsAndEnvironment) {
-  // The test sets RELIT_RENDER_VARIANT itself; a value the suite runs under is put back at the end.
-  const char* outer = std::getenv("RELIT_RENDER_VARIANT");
-  const std::string saved = outer ? outer : "";
-  ::unsetenv("RELIT_RENDER_VARIANT");
-  DeviceInfo cpu, nvidia, amd, intel, other;
-  cpu.type = "cpu";
-  cpu.vendor = "GenuineIntel";
-  nvidia.type = amd.type = intel.type = "gpu";
-  nvidia.vendor = "NVIDIA Corporation";
-  amd.vendor = "Advanced Micro Devices, Inc.";
-  intel.vendor = "Intel(R) Corporation";
-  other.type = "accelerator";
-  other.vendor = "Example";
+  // The test sets RELIT_RENDER_VARIANT itself; a value the suite runs under is put back at the end (ScopedEnv).
+  std::optional<test::ScopedEnv> env;
+  env.emplace("RELIT_RENDER_VARIANT", std::nullopt);
+  const test::TableDevices d;
+  const DeviceInfo &cpu = d.cpu, &nvidia = d.nvidia, &amd = d.amd, &intel = d.intel, &other = d.other;
   EXPECT_EQ(VolumeRenderer::device_default(cpu).variant, KernelVariant::Simd);
   EXPECT_TRUE(VolumeRenderer::device_default(cpu).tuned);
   for (const DeviceInfo* gpu : {&nvidia, &amd, &intel, &other}) {
@@ -694,10 +686,7 @@ TEST(VolumeRenderer, KernelVariantFollowsTheTableSettingsAndEnvironment) {
   EXPECT_EQ(forced.kernel_choice().source, "set_kernels()");
   ::setenv("RELIT_RENDER_VARIANT", "gpu", 1);
   EXPECT_THROW(VolumeRenderer::default_kernels(cpu), InvalidArgument);
-  if (outer)
-    ::setenv("RELIT_RENDER_VARIANT", saved.c_str(), 1);
-  else
-    ::unsetenv("RELIT_RENDER_VARIANT");
+  env.reset();
 
   EXPECT_THROW(forced.set_kernels(KernelVariant::WorkGroup, VolumeRenderer::WorkGroupParams{0, true}), InvalidArgument);
   VolumeRendererSettings bad{16, 1, 8};

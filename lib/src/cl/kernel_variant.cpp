@@ -47,4 +47,10 @@ bool device_matches(const DeviceInfo& info, const char* type, const char* vendor
   return false;
 }
 
+std::string kernel_choice_text(KernelVariant variant, const std::string& parameters, const std::string& source,
+                               bool tuned) {
+  return std::string(kernel_variant_name(variant)) + (parameters.empty() ? "" : " " + parameters) + " (" + source +
+         (tuned ? "" : ", untuned") + ")";
+}
+
 }  // namespace relit

@@ -89,8 +89,7 @@ std::string FullyFusedMLP::WorkGroupParams::str() const {
 }
 
 std::string FullyFusedMLP::KernelChoice::str() const {
-  return std::string(variant_name(variant)) + " " + (variant == Variant::Simd ? blocking.str() : workgroup.str()) +
-         " (" + source + (tuned ? "" : ", untuned") + ")";
+  return kernel_choice_text(variant, variant == Variant::Simd ? blocking.str() : workgroup.str(), source, tuned);
 }
 
 FullyFusedMLP::KernelChoice FullyFusedMLP::device_default(const DeviceInfo& info) {
@@ -109,14 +108,7 @@ FullyFusedMLP::KernelChoice FullyFusedMLP::device_default(const DeviceInfo& info
 }
 
 FullyFusedMLP::KernelChoice FullyFusedMLP::default_kernels(const DeviceInfo& info) {
-  KernelChoice c = device_default(info);
-  const std::optional<Variant> env = kernel_variant_from_env("RELIT_MLP_VARIANT");
-  if (!env) return c;
-  const Variant want = *env;
-  if (want != c.variant) c.tuned = false;  // a row's tuning is for its own variant
-  c.variant = want;
-  c.source = "RELIT_MLP_VARIANT";
-  return c;
+  return with_env_variant(device_default(info), "RELIT_MLP_VARIANT");
 }
 
 FullyFusedMLP::Blocking FullyFusedMLP::default_blocking(const DeviceInfo& info) {

@@ -10,14 +10,7 @@ namespace {
 
 using WorkGroupParams = VolumeRenderer::WorkGroupParams;
 
-struct Row {
-  const char* name;
-  const char* type;    // DeviceInfo::type, "" for any
-  const char* vendor;  // fragments of DeviceInfo::vendor separated by '|' (case-insensitive), "" for any
-  KernelVariant variant;
-  WorkGroupParams workgroup;
-  bool tuned;
-};
+using Row = KernelTableRow<WorkGroupParams>;
 
 // Work-items per ray group, and local-memory staging. None of the GPU rows is tuned (no GPU was available to
 // measure on); they are starting points: one work-item per sample at the usual 64 samples per ray (two NVIDIA
@@ -44,32 +37,15 @@ std::string VolumeRenderer::WorkGroupParams::str() const {
 }
 
 std::string VolumeRenderer::KernelChoice::str() const {
-  return std::string(kernel_variant_name(variant)) +
-         (variant == KernelVariant::WorkGroup ? " " + workgroup.str() : "") + " (" + source +
-         (tuned ? "" : ", untuned") + ")";
+  return kernel_choice_text(variant, variant == KernelVariant::WorkGroup ? workgroup.str() : "", source, tuned);
 }
 
 VolumeRenderer::KernelChoice VolumeRenderer::device_default(const DeviceInfo& info) {
-  for (const Row& row : kTable) {
-    if (!device_matches(info, row.type, row.vendor)) continue;
-    KernelChoice c;
-    c.variant = row.variant;
-    c.workgroup = row.workgroup;
-    c.tuned = row.tuned;
-    c.source = std::string("table: ") + row.name;
-    return c;
-  }
-  throw Error("VolumeRenderer: the kernel table has no row for " + info.description());  // the last matches all
+  return table_kernel_choice<KernelChoice>(kTable, info, "VolumeRenderer");
 }
 
 VolumeRenderer::KernelChoice VolumeRenderer::default_kernels(const DeviceInfo& info) {
-  KernelChoice c = device_default(info);
-  const std::optional<KernelVariant> env = kernel_variant_from_env("RELIT_RENDER_VARIANT");
-  if (!env) return c;
-  if (*env != c.variant) c.tuned = false;  // a row's tuning is for its own variant
-  c.variant = *env;
-  c.source = "RELIT_RENDER_VARIANT";
-  return c;
+  return with_env_variant(device_default(info), "RELIT_RENDER_VARIANT");
 }
 
 }  // namespace relit::render

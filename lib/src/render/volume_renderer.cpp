@@ -63,17 +63,8 @@ void VolumeRenderer::set_kernels(std::optional<KernelVariant> variant, std::opti
 VolumeRenderer::KernelChoice VolumeRenderer::choose(std::optional<KernelVariant> forced,
                                                     std::optional<WorkGroupParams> params) const {
   const DeviceInfo& info = m_device.info();
-  KernelChoice c = default_kernels(info);
-  const KernelChoice row = device_default(info);
-  if (forced) {
-    c.variant = *forced;
-    c.workgroup = params ? *params : row.workgroup;
-    c.source = "set_kernels()";
-  } else if (c.source != "RELIT_RENDER_VARIANT" && m_settings.kernel_variant != "auto") {
-    c.variant = *parse_kernel_variant(m_settings.kernel_variant, "kernel_variant");
-    c.source = "kernel_variant";
-  }
-  c.tuned = row.tuned && c.variant == row.variant && (c.variant == KernelVariant::Simd || c.workgroup == row.workgroup);
+  KernelChoice c = resolve_kernel_choice(default_kernels(info), device_default(info), "RELIT_RENDER_VARIANT", forced,
+                                         params, m_settings.kernel_variant);
   // Fit the device: a power of two of work-items that divides the samples of a ray (a multiple of 16, so 16
   // always does), within the device's limit; staging where the shared directions fit half the local memory.
   WorkGroupParams& p = c.workgroup;

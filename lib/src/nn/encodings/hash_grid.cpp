@@ -143,17 +143,8 @@ void HashGridEncoding::set_kernels(std::optional<KernelVariant> variant, std::op
 
 HashGridEncoding::KernelChoice HashGridEncoding::kernel_choice(const Device& device) const {
   const DeviceInfo& info = device.info();
-  KernelChoice c = default_kernels(info);
-  const KernelChoice row = device_default(info);
-  if (m_forced_variant) {
-    c.variant = *m_forced_variant;
-    c.workgroup = m_forced_params ? *m_forced_params : row.workgroup;
-    c.source = "set_kernels()";
-  } else if (c.source != "RELIT_ENCODING_VARIANT" && m_options.kernel_variant != "auto") {
-    c.variant = *parse_kernel_variant(m_options.kernel_variant, "kernel_variant");
-    c.source = "kernel_variant";
-  }
-  c.tuned = row.tuned && c.variant == row.variant && (c.variant == KernelVariant::Simd || c.workgroup == row.workgroup);
+  KernelChoice c = resolve_kernel_choice(default_kernels(info), device_default(info), "RELIT_ENCODING_VARIANT",
+                                         m_forced_variant, m_forced_params, m_options.kernel_variant);
   if (c.variant == KernelVariant::Simd) return c;
   // Fit the device: work-group sizes within its limit, the gradient's staged pairs within its local memory.
   WorkGroupParams& p = c.workgroup;

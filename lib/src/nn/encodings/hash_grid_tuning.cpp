@@ -12,14 +12,7 @@ namespace {
 
 using WorkGroupParams = HashGridEncoding::WorkGroupParams;
 
-struct Row {
-  const char* name;
-  const char* type;    // DeviceInfo::type, "" for any
-  const char* vendor;  // fragments of DeviceInfo::vendor separated by '|' (case-insensitive), "" for any
-  KernelVariant variant;
-  WorkGroupParams workgroup;
-  bool tuned;
-};
+using Row = KernelTableRow<WorkGroupParams>;
 
 // Work-group parameters: forward items, gradient items / chunk / groups per compute unit, input-gradient samples.
 // None of the GPU rows is tuned (no GPU was available to measure on); they are starting points, based on:
@@ -57,32 +50,15 @@ std::string HashGridEncoding::WorkGroupParams::str() const {
 }
 
 std::string HashGridEncoding::KernelChoice::str() const {
-  return std::string(kernel_variant_name(variant)) +
-         (variant == KernelVariant::WorkGroup ? " " + workgroup.str() : "") + " (" + source +
-         (tuned ? "" : ", untuned") + ")";
+  return kernel_choice_text(variant, variant == KernelVariant::WorkGroup ? workgroup.str() : "", source, tuned);
 }
 
 HashGridEncoding::KernelChoice HashGridEncoding::device_default(const DeviceInfo& info) {
-  for (const Row& row : kTable) {
-    if (!device_matches(info, row.type, row.vendor)) continue;
-    KernelChoice c;
-    c.variant = row.variant;
-    c.workgroup = row.workgroup;
-    c.tuned = row.tuned;
-    c.source = std::string("table: ") + row.name;
-    return c;
-  }
-  throw Error("HashGridEncoding: the kernel table has no row for " + info.description());  // the last matches all
+  return table_kernel_choice<KernelChoice>(kTable, info, "HashGridEncoding");
 }
 
 HashGridEncoding::KernelChoice HashGridEncoding::default_kernels(const DeviceInfo& info) {
-  KernelChoice c = device_default(info);
-  const std::optional<KernelVariant> env = kernel_variant_from_env("RELIT_ENCODING_VARIANT");
-  if (!env) return c;
-  if (*env != c.variant) c.tuned = false;  // a row's tuning is for its own variant
-  c.variant = *env;
-  c.source = "RELIT_ENCODING_VARIANT";
-  return c;
+  return with_env_variant(device_default(info), "RELIT_ENCODING_VARIANT");
 }
 
 }  // namespace relit::nn
