@@ -2,6 +2,7 @@
 #include <relit/cl/kernel_variant.hpp>
 
 #include <relit/error.hpp>
+#include <relit/log.hpp>
 
 #include <algorithm>
 #include <cctype>
@@ -45,6 +46,12 @@ bool device_matches(const DeviceInfo& info, const char* type, const char* vendor
     start = end + 1;
   }
   return false;
+}
+
+void warn_work_group_fallback(const std::string& who, const std::string& parameters, const std::string& device_name,
+                              const std::string& why, const char* env) {
+  log_warning(who + ": the work-group kernels (" + parameters + ") do not fit " + device_name + ": " + why +
+              "; running the SIMD kernels (set kernel_variant or " + env + " to simd to silence this)");
 }
 
 std::string kernel_choice_text(KernelVariant variant, const std::string& parameters, const std::string& source,

@@ -3,7 +3,6 @@
 
 #include <relit/cl/program.hpp>
 #include <relit/error.hpp>
-#include <relit/log.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -340,11 +339,8 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
       k->local_forward = k->local_backward = p.items;
       k->local_weight_grad = dw_items;
       k->local_reduce = local(k->reduce);
-    } else {  // a working network rather than an error: the SIMD kernels run on every device
-      log_warning("FullyFusedMLP: the work-group kernels (" + p.str() + ") do not fit: " + why +
-                  "; running the SIMD kernels (set kernel_variant or RELIT_MLP_VARIANT to simd to silence this)");
-      choice.variant = Variant::Simd;
-      choice.source += ", work-group kernels did not fit";
+    } else {
+      fall_back_to_simd(choice, "FullyFusedMLP", device.info().name, why, "RELIT_MLP_VARIANT");
     }
   }
   if (!k->workgroup) {

@@ -1,6 +1,5 @@
 // VolumeRenderer: argument checks and kernel launches (the math is in kernels/render.cl).
 #include <relit/cl/program.hpp>
-#include <relit/log.hpp>
 #include <relit/nn/registry.hpp>
 #include <relit/render/environment.hpp>
 #include <relit/render/volume_renderer.hpp>
@@ -85,13 +84,7 @@ VolumeRenderer::KernelChoice VolumeRenderer::choose(std::optional<KernelVariant>
        {"render_wg_radiance", "render_wg_radiance_backward", "render_wg_composite", "render_wg_composite_backward"})
     if (program.kernel(name).max_work_group_size() < p.items)
       why = std::string("the compiled ") + name + " accepts fewer than " + std::to_string(p.items) + " work-items";
-  if (!why.empty()) {  // a working renderer rather than an error: the SIMD kernels run on every device
-    log_warning("VolumeRenderer: the work-group kernels (" + p.str() + ") do not fit " + info.name + ": " + why +
-                "; running the SIMD kernels (set kernel_variant or RELIT_RENDER_VARIANT to simd to silence this)");
-    c.variant = KernelVariant::Simd;
-    c.tuned = false;
-    c.source += ", work-group kernels did not fit";
-  }
+  if (!why.empty()) fall_back_to_simd(c, "VolumeRenderer", info.name, why, "RELIT_RENDER_VARIANT");
   return c;
 }
 

@@ -81,6 +81,22 @@ Choice with_env_variant(Choice c, const char* name) {
   return c;
 }
 
+/// Logs that `who`'s work-group kernels (`parameters`) do not fit `device_name` (`why`) and that the SIMD kernels,
+/// which run on every device, run instead; `env` is the variable that silences it.
+void warn_work_group_fallback(const std::string& who, const std::string& parameters, const std::string& device_name,
+                              const std::string& why, const char* env);
+
+/// A work-group choice that does not fit its device becomes the SIMD kernels, with that warning: a working
+/// component rather than an error.
+template <class Choice>
+void fall_back_to_simd(Choice& c, const std::string& who, const std::string& device_name, const std::string& why,
+                       const char* env) {
+  warn_work_group_fallback(who, c.workgroup.str(), device_name, why, env);
+  c.variant = KernelVariant::Simd;
+  c.tuned = false;
+  c.source += ", work-group kernels did not fit";
+}
+
 /// What a component runs: `forced` (its set_kernels(), with `params` or the row's) over the environment
 /// variable (already applied in `with_env`, whose source then names it) over the config's `config_variant`
 /// ("auto", "simd" or "workgroup") over the table's `row`. Tuned only when it is the row's own variant and

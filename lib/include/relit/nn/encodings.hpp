@@ -17,6 +17,7 @@
 
 #include <array>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -201,16 +202,27 @@ class HashGridEncoding final : public Encoding {
   /// Throws InvalidArgument on parameters out of range.
   void set_kernels(std::optional<KernelVariant> variant, std::optional<WorkGroupParams> params = std::nullopt);
   /// What the kernels use on `device`: set_kernels(), else RELIT_ENCODING_VARIANT, else the kernel_variant
-  /// option, else the device's table row; the work-group parameters as lowered to fit the device.
+  /// option, else the device's table row; the work-group parameters as lowered to fit the device. The
+  /// launches resolve it once per device (as FullyFusedMLP's kernels: the environment is read when the
+  /// encoding first runs on a device) until set_kernels().
   KernelChoice kernel_choice(const Device& device) const;
 
  private:
+  /// A device's resolved choice and the -D definitions of its kernels' program.
+  struct Launch {
+    Device device;
+    KernelChoice choice;
+    Defines defines;
+  };
+  const Launch& launch(const Device& device) const;
   Defines defines(const Device& device) const;
   Defines workgroup_defines(const Device& device, const WorkGroupParams& p) const;
   std::uint32_t m_dims;
   Options m_options;
   std::optional<KernelVariant> m_forced_variant;  // set_kernels()
   std::optional<WorkGroupParams> m_forced_params;
+  mutable std::mutex m_mutex;
+  mutable std::vector<std::unique_ptr<Launch>> m_launches;  // one per device
   std::vector<Level> m_levels;
   std::uint32_t m_n_params = 0;
 };

@@ -2,7 +2,6 @@
 // the reasoning behind their work order and gradient scheme are in kernels/enc_hashgrid.cl.
 #include "common.hpp"
 
-#include <relit/log.hpp>
 #include <relit/nn/encodings.hpp>
 
 #include <algorithm>
@@ -137,8 +136,27 @@ void HashGridEncoding::set_kernels(std::optional<KernelVariant> variant, std::op
     check(p.grad_groups >= 1 && p.grad_groups <= 256, "grad_groups must be in [1, 256]");
     check(p.input_samples >= 1 && p.input_samples <= 256, "input_samples must be in [1, 256]");
   }
+  std::lock_guard<std::mutex> lock(m_mutex);
   m_forced_variant = variant;
   m_forced_params = variant ? params : std::nullopt;
+  m_launches.clear();
+}
+
+const HashGridEncoding::Launch& HashGridEncoding::launch(const Device& device) const {
+  {
+    std::lock_guard<std::mutex> lock(m_mutex);
+    for (const auto& l : m_launches)
+      if (l->device == device) return *l;
+  }
+  // Resolved outside the lock (kernel_choice() may build the work-group program to check its limits).
+  auto l = std::make_unique<Launch>(Launch{device, kernel_choice(device), {}});
+  l->defines =
+      l->choice.variant == KernelVariant::WorkGroup ? workgroup_defines(device, l->choice.workgroup) : defines(device);
+  std::lock_guard<std::mutex> lock(m_mutex);
+  for (const auto& other : m_launches)  // another thread got there first
+    if (other->device == device) return *other;
+  m_launches.push_back(std::move(l));
+  return *m_launches.back();
 }
 
 HashGridEncoding::KernelChoice HashGridEncoding::kernel_choice(const Device& device) const {
@@ -167,16 +185,7 @@ HashGridEncoding::KernelChoice HashGridEncoding::kernel_choice(const Device& dev
         program.kernel("hashgrid_wg_backward_input").max_work_group_size() < std::size_t(p.input_samples) * levels)
       why = "the compiled kernels accept smaller work-groups";
   }
-  if (!why.empty()) {  // a working encoding rather than an error: the SIMD kernels run on every device
-    static std::once_flag warned;
-    std::call_once(warned, [&] {
-      log_warning("HashGrid encoding: the work-group kernels (" + p.str() + ") do not fit " + info.name + ": " + why +
-                  "; running the SIMD kernels (set kernel_variant or RELIT_ENCODING_VARIANT to simd to silence this)");
-    });
-    c.variant = KernelVariant::Simd;
-    c.tuned = false;
-    c.source += ", work-group kernels did not fit";
-  }
+  if (!why.empty()) fall_back_to_simd(c, "HashGrid encoding", info.name, why, "RELIT_ENCODING_VARIANT");
   return c;
 }
 
@@ -196,10 +205,10 @@ void HashGridEncoding::forward(const Device& device, ConstParamSlice params, con
   detail::check_matrix("HashGrid::forward", "input", input, in_col, m_dims);
   detail::check_matrix("HashGrid::forward", "output", output, out_col, n_output_dims(), &input);
   detail::check_slice("HashGrid::forward", "parameter", params, m_n_params);
-  const KernelChoice choice = kernel_choice(device);
-  if (choice.variant == KernelVariant::WorkGroup) {  // one work-item per (sample, level), level-major
-    const WorkGroupParams& p = choice.workgroup;
-    Kernel k = device.kernel("enc_hashgrid_wg.cl", "hashgrid_wg_forward", workgroup_defines(device, p));
+  const Launch& l = launch(device);
+  if (l.choice.variant == KernelVariant::WorkGroup) {  // one work-item per (sample, level), level-major
+    const WorkGroupParams& p = l.choice.workgroup;
+    Kernel k = device.kernel("enc_hashgrid_wg.cl", "hashgrid_wg_forward", l.defines);
     const std::size_t per_level = round_up(input.padded(), p.items);
     k.args(input.padded(), static_cast<std::uint32_t>(per_level), *params.buffer,
            static_cast<std::uint32_t>(params.offset), input.data(), input.cols(), in_col, output.data(), output.cols(),
@@ -207,7 +216,7 @@ void HashGridEncoding::forward(const Device& device, ConstParamSlice params, con
         .launch(per_level * m_levels.size(), p.items);
     return;
   }
-  Kernel k = device.kernel("enc_hashgrid.cl", "hashgrid_forward", defines(device));
+  Kernel k = device.kernel("enc_hashgrid.cl", "hashgrid_forward", l.defines);
   const std::size_t items = static_cast<std::size_t>(detail::n_tiles(input)) * m_levels.size();
   k.args(detail::n_tiles(input), *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(), input.cols(),
          in_col, output.data(), output.cols(), out_col)
@@ -224,10 +233,10 @@ void HashGridEncoding::backward(const Device& device, ConstParamSlice params, co
     detail::check_matrix("HashGrid::backward", "d_input", *d_input, in_col, m_dims, &input);
     detail::check_slice("HashGrid::backward", "parameter", params, m_n_params);
   }
-  const KernelChoice choice = kernel_choice(device);
-  if (choice.variant == KernelVariant::WorkGroup) {
-    const WorkGroupParams& p = choice.workgroup;
-    const Defines defs = workgroup_defines(device, p);
+  const Launch& l = launch(device);
+  const Defines& defs = l.defines;
+  if (l.choice.variant == KernelVariant::WorkGroup) {
+    const WorkGroupParams& p = l.choice.workgroup;
     const std::uint32_t levels = static_cast<std::uint32_t>(m_levels.size());
     if (grads.buffer) {
       // Enough groups to occupy the device, at least one per level (each group rescans the batch: no more).
@@ -248,7 +257,6 @@ void HashGridEncoding::backward(const Device& device, ConstParamSlice params, co
     }
     return;
   }
-  const Defines defs = defines(device);
   if (grads.buffer) {
     Kernel k = device.kernel("enc_hashgrid.cl", "hashgrid_backward_params", defs);
     const std::size_t items = m_levels.size() * static_cast<std::size_t>(gradient_ranges(device));
