@@ -54,9 +54,14 @@ void VolumeRenderer::set_kernels(std::optional<KernelVariant> variant, std::opti
     throw InvalidArgument("VolumeRenderer::set_kernels: items must be in [1, 1024], got " +
                           std::to_string(params->items));
   m_choice = choose(variant, variant ? params : std::nullopt);
-  m_wg_defines = m_defines;
-  m_wg_defines["RAY_ITEMS"] = std::to_string(m_choice.workgroup.items);
-  m_wg_defines["STAGE_DIRS"] = m_choice.workgroup.stage ? "1" : "0";
+  m_wg_defines = workgroup_defines(m_choice.workgroup);
+}
+
+Defines VolumeRenderer::workgroup_defines(const WorkGroupParams& p) const {
+  Defines d = m_defines;
+  d["RAY_ITEMS"] = std::to_string(p.items);
+  d["STAGE_DIRS"] = p.stage ? "1" : "0";
+  return d;
 }
 
 VolumeRenderer::KernelChoice VolumeRenderer::choose(std::optional<KernelVariant> forced,
@@ -75,10 +80,7 @@ VolumeRenderer::KernelChoice VolumeRenderer::choose(std::optional<KernelVariant>
   const std::uint64_t staged = (indirect + 6ull * m_settings.n_env_dirs) * sizeof(float);
   p.stage = p.stage && staged <= info.local_memory / 2;
   if (c.variant == KernelVariant::Simd) return c;
-  Defines d = m_defines;
-  d["RAY_ITEMS"] = std::to_string(p.items);
-  d["STAGE_DIRS"] = p.stage ? "1" : "0";
-  const Program program = m_device.program("render_wg.cl", d);
+  const Program program = m_device.program("render_wg.cl", workgroup_defines(p));
   std::string why;
   for (const char* name :
        {"render_wg_radiance", "render_wg_radiance_backward", "render_wg_composite", "render_wg_composite_backward"})

@@ -162,6 +162,7 @@ class VolumeRenderer {
   void check(std::uint32_t n_rays, const nn::BatchMatrix& props, const nn::BatchMatrix& dirs,
              const nn::BatchMatrix& sh_basis, const EnvironmentSamples* env, const char* what) const;
   KernelChoice choose(std::optional<KernelVariant> forced, std::optional<WorkGroupParams> params) const;
+  Defines workgroup_defines(const WorkGroupParams& p) const;  ///< m_defines with the work-group parameters
   bool workgroup() const { return m_choice.variant == KernelVariant::WorkGroup; }
   Device m_device;
   VolumeRendererSettings m_settings;
