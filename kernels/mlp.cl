@@ -429,7 +429,8 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 // but x, y, dy and dx is read or written; the separate kernels above write and re-read the saved activations
 // and every dZ, and on a CPU they are bound by that memory traffic. The forward and backward blocks run on
 // FWD_T tiles at a time; the weight-gradient blocks on all TRAIN_G tiles, so that each accumulator load and
-// store feeds TRAIN_G FMAs. At the end of its chunk the work-item writes the lane sums to its partial slot;
+// store feeds TRAIN_G FMAs; the chunk's first group starts them from zero, its last one writes their lane sums
+// to the work-item's partial slot instead of storing them;
 // mlp_reduce_chunks adds the chunks in a fixed order (deterministic, no atomics).
 //
 // scratch (per work-item, scratch_stride floats apart, 64-byte aligned):
@@ -476,12 +477,15 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
   __global float16* gbuf = rows + N_ROWS * TRAIN_G;
   __global float* sink = (__global float*)(gbuf + 2 * GMAX * TRAIN_G);
   const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-  for (uint i = 0; i < n_params; ++i) accv[i] = (float16)0.0f;
+  __global float* out = partial + c * (size_t)partial_stride;
   for (uint u = 0; u < TRAIN_G; ++u) rows[N_IN * TRAIN_G + u] = (float16)1.0f;
   const uint save = 0, padded = 0;  // the forward blocks keep their activations in the scratch only
   __global float* st = 0;
 
   for (size_t tb = t_begin; tb < t_end; tb += TRAIN_G) {
+    // The chunk's first group starts the accumulators from zero, its last one writes their lane sums to the
+    // partial slot in place of storing them (no separate passes over the accumulators).
+    const bool first_group = tb == t_begin, last_group = tb + TRAIN_G >= t_end;
     // Forward through the hidden layers (the output y is the caller's, from forward()).
     for (uint sg = 0; sg < TRAIN_G / FWD_T; ++sg) {
       SUB_TILES(sg)
@@ -528,6 +532,7 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
       {  // dW_l += dZ_l x input_l over the group's TRAIN_G tiles, DW_RJ x DW_RK blocks.
         __global const float16* gin = gbuf + (l & 1) * GMAX * HS;
         __global float16* acc_l = accv + layer_offset(l);
+        __global float* out_l = out + layer_offset(l);
         for (uint j0 = 0; j0 < nout; j0 += DW_RJ)
           for (uint k0 = 0; k0 < stride; k0 += DW_RK) {
             // Rows and columns past the end repeat the last one; their sums are not stored.
@@ -545,7 +550,7 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
             for (uint i = 0; i < DW_RJ; ++i)
 #pragma unroll
               for (uint r = 0; r < DW_RK; ++r)
-                a[i][r] = acc_l[min(j0 + i, nout - 1) * stride + min(k0 + r, stride - 1)];
+                a[i][r] = first_group ? (float16)0.0f : acc_l[min(j0 + i, nout - 1) * stride + min(k0 + r, stride - 1)];
             for (uint u = 0; u < TRAIN_G; ++u) {
               float16 v[DW_RK];
 #pragma unroll
@@ -561,7 +566,13 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
             for (uint i = 0; i < DW_RJ; ++i)
 #pragma unroll
               for (uint r = 0; r < DW_RK; ++r)
-                if (j0 + i < nout && k0 + r < stride) acc_l[(j0 + i) * stride + k0 + r] = a[i][r];
+                if (j0 + i < nout && k0 + r < stride) {
+                  const uint at = (j0 + i) * stride + k0 + r;
+                  if (last_group)
+                    out_l[at] = sum16(a[i][r]);
+                  else
+                    acc_l[at] = a[i][r];
+                }
           }
       }
       // dL/dx (layer 0 and skips) and dZ of layer l - 1, FWD_T tiles at a time.
@@ -584,6 +595,4 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
       if (l == 0) break;
     }
   }
-  __global float* out = partial + c * (size_t)partial_stride;
-  for (uint i = 0; i < n_params; ++i) out[i] = sum16(accv[i]);
 }
