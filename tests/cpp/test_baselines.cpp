@@ -571,6 +571,50 @@ TEST(NeRV, RenderGradientMatchesFiniteDifferences) {
   check_gradients(model, 0, 0, model.n_params());
 }
 
+// training_visibility "march" with NeRV, whose V_ψ has two outputs (V, D): a training pass takes the direct
+// light's V from the density-grid march (it threw for want of a one-column matrix), the same V as a pass asked
+// to march; without the key the pass asks the network, which gives other values.
+TEST(NeRV, TrainingVisibilityCanMarchTheDensityGrid) {
+  const Device dev = test::test_device();
+  Json config = tiny_nerv();
+  config["initial_density"] = 3.0;  // a grid dense enough to shadow
+  auto make = [&](const std::string& training_visibility) {
+    Json c = config;
+    c["training_visibility"] = training_visibility;
+    auto model = method::create_model(dev, "nerv", c);
+    model->initialize(2);
+    model->refresh_density_grid();
+    return model;
+  };
+  auto marching = make("march"), network = make("network");
+  Scene1 sc;
+  const std::uint32_t n = 16;
+  Buffer<float> rays(dev, std::size_t(n) * render::kRayFloats);
+  render::image_rays(dev, sc.camera, sc.light, 0, n, rays);
+  auto visibility = [&](method::Model& model, bool march) {
+    auto pass = model.make_pass();
+    method::PassOptions o = training_options();
+    o.march_visibility = march;
+    model.render(*pass, rays, n, o);
+    const auto v = dynamic_cast<method::MediumPass&>(*pass).vis.download_row_major();
+    std::vector<float> first;  // column 0: V toward the point light
+    for (std::size_t i = 0; i < v.size(); i += 2) first.push_back(v[i]);
+    return first;
+  };
+  const auto got = visibility(*marching, false), want = visibility(*network, true), net = visibility(*network, false);
+  ASSERT_EQ(got.size(), std::size_t(n) * 16);
+  EXPECT_EQ(got, want);
+  double diff = 0, shadowed = 0;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    ASSERT_GE(got[i], 0.0f);
+    ASSERT_LE(got[i], 1.0f);
+    diff += std::fabs(got[i] - net[i]);
+    shadowed += 1.0 - got[i];
+  }
+  EXPECT_GT(diff, 0.0);
+  EXPECT_GT(shadowed / got.size(), 0.05);
+}
+
 // ---- the shadow gradient ------------------------------------------------------------------------------------------
 
 // kernels/method.cl shadow_points against a double reference on random samples: each point lies on its
