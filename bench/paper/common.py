@@ -315,15 +315,17 @@ def logged_losses(run):
 def convergence(run, early=200):
     """Did the run's loss keep falling? The smoothed loss over the last 10 % of the steps against the smoothed
     loss around step `early` (the mean of the logged losses in [early - 50, early + 50]); `converged` when the end
-    is at most half of it (issue target: no runaway), None when the run is too short to tell (under 2 x early)."""
+    is at most half of it (the target: the loss keeps falling), `rising` when the end is above it (a runaway); None
+    when the run is too short to tell (under 2 x early). Between the two the loss fell, but by less than half."""
     losses = logged_losses(run)
     if not losses or losses[-1][0] < 2 * early:
-        return {"early": None, "last": None, "ratio": None, "converged": None}
+        return {"early": None, "last": None, "ratio": None, "converged": None, "rising": None}
     last_step = losses[-1][0]
     near = [l for s, l in losses if abs(s - early) <= 50]
     tail = [l for s, l in losses if s > 0.9 * last_step]
     e, t = sum(near) / len(near), sum(tail) / len(tail)
-    return {"early": e, "last": t, "ratio": t / e if e > 0 else None, "converged": bool(t <= 0.5 * e)}
+    return {"early": e, "last": t, "ratio": t / e if e > 0 else None, "converged": bool(t <= 0.5 * e),
+            "rising": bool(t > e)}
 
 
 def plot(path, title, xlabel, series, xticks=None, ylabel="PSNR [dB]"):

@@ -105,11 +105,16 @@ def compare(r, args, datasets, methods, results, sweeps, title):
                          obj["ssim"] if obj["ssim"] is not None else "–",
                          "%.3g" % obj["rel_mse"] if obj["rel_mse"] is not None else "–",
                          obj["flip"] if obj["flip"] is not None else "–", "%.1f" % minutes,
-                         "–" if ratio is None else "%.2f%s" % (ratio, "" if conv["converged"] else " (runaway)")])
+                         "–" if ratio is None else "%.2f%s" % (ratio, convergence_mark(conv))])
         clipped = results[name][methods[-1][1]]["object"]["clipped"]
         lines += ["### " + name + ("" if clipped is None else " (%.1f %% of the object's pixels clip)" % (100 * clipped)),
                   ""] + common.markdown_table(header, rows) + [""]
     return lines
+
+
+def convergence_mark(conv):
+    """The table's note on a run's loss: nothing when it halved after step 200, else whether it still fell."""
+    return "" if conv["converged"] else " (runaway)" if conv["rising"] else " (fell less than half)"
 
 
 def orderings(results, order):
@@ -166,6 +171,8 @@ def main():
     runs = [v for part in ("media", "solids") for d in results[part].values() for v in d.values()]
     checks["no run runs away (loss over the last 10 % at most half of step 200's)"] = all(
         v["convergence"]["converged"] is not False for v in runs)
+    checks["no run's loss rises (loss over the last 10 % below step 200's)"] = all(
+        v["convergence"]["rising"] is not True for v in runs)
     results["checks"] = checks
     sweep_lines = []
     for part, sw in results["lr_sweep"].items():

@@ -42,9 +42,10 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
                 scores = sweep[method]["val_psnr"]
                 assert v["lr"] == sweep[method]["chosen"] and "%g" % v["lr"] == max(scores, key=scores.get)
                 assert 0 < v["object"]["psnr"] < 100 and 0 <= v["object"]["flip"] <= 1
-                assert set(v["convergence"]) == {"early", "last", "ratio", "converged"}
+                assert set(v["convergence"]) == {"early", "last", "ratio", "converged", "rising"}
     assert set(cmp["gaps"]) == {"cloud-point", "cloud-envpoint"}
     assert any(k.startswith("no run runs away") for k in cmp["checks"])
+    assert any(k.startswith("no run's loss rises") for k in cmp["checks"])
     assert "| Ours + BRDF |" in (tmp_path / "comparison" / "results.md").read_text()
     for f in ["sh_ablation/results.md", "sh_ablation/sh_ablation.png", "generalization/results.md",
               "generalization/distance.png", "generalization/intensity.png", "comparison/comparison.png"]:
