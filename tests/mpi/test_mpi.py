@@ -4,6 +4,7 @@ configurations. Runs the relit program ($RELIT_APP) under $RELIT_MPIEXEC with tw
 OpenCL device (--oversubscribe); CTest runs it as mpi.pytest (label mpi)."""
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -176,7 +177,10 @@ def test_a_hung_rank_ends_the_job_after_the_timeout(dataset, tmp_path):
     output = proc.communicate(timeout=120)[0]
     assert time.monotonic() - stopped < 60
     assert proc.returncode != 0
-    assert "no answer from the other ranks within 3 s in the gradient reduction" in output, output
+    # Rank 0 notices at its next collective: the gradient reduction of most steps, or the density-grid refresh of
+    # every 16th (which one depends on when the stop lands; under load the refresh has been seen).
+    assert re.search(r"rank 0 of 2: no answer from the other ranks within 3 s in the "
+                     r"(gradient reduction|density-grid refresh)", output), output
     relit.Model.load(str(out / "checkpoint.relit"))
 
 
