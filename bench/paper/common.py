@@ -41,8 +41,10 @@ _CI_MODEL = {
     },
 }
 
-# The `ci` scale's tiny model per method: each method's structure, at the size of _CI_MODEL.
+# The `ci` scale's tiny model per method: each method's structure, at the size of _CI_MODEL; the baselines train
+# their direct light as their presets do (the marched shadow and its gradient, docs/baselines.md).
 _CI_MLP = {"type": "FullyFusedMLP", "n_neurons": 16, "n_hidden_layers": 1}
+_CI_SHADOW = {"training_visibility": "march", "shadow_gradient": {"enabled": True}}
 CI_MODELS = {
     "ours": _CI_MODEL,
     "ours_brdf": _CI_MODEL,
@@ -50,14 +52,14 @@ CI_MODELS = {
            "density_grid": _CI_MODEL["density_grid"],
            "property": _CI_MODEL["property"],
            "coarse": _CI_MODEL["property"],
-           "visibility": _CI_MODEL["visibility"]},
+           "visibility": _CI_MODEL["visibility"], "inference_visibility": "march", **_CI_SHADOW},
     "nerv": {"renderer": {"n_samples": 16},
              "bounce": {"n_dirs": 4, "n_dirs_env": 2},
              "density_grid": _CI_MODEL["density_grid"],
              "property": _CI_MODEL["property"],
              "visibility": {"position_encoding": _CI_MODEL["visibility"]["position_encoding"],
                             "direction_encoding": _CI_MODEL["visibility"]["direction_encoding"],
-                            "trunk": _CI_MLP, "network": _CI_MLP}},
+                            "trunk": _CI_MLP, "network": _CI_MLP}, **_CI_SHADOW},
 }
 
 SCALES = {
