@@ -73,11 +73,12 @@ inline void load_positions16(__global const float* positions, uint tile, float16
 }
 
 // One work-item per tile of 16 samples (the samples of a tile belong to one ray: N_SAMPLES % 16 == 0), one
-// float16 lane per sample: V toward the ray's light (visibility: n x 1 tiled), or with depth_scale k != 1
-// exp(-k tau), tau the optical depth (the SH head's optical-depth input).
+// float16 lane per sample: V toward the ray's light into column 0 of `visibility` (n x cols tiled; the other
+// columns untouched), or with depth_scale k != 1 exp(-k tau), tau the optical depth (the SH head's input).
 __kernel void march_to_light(const uint n_tiles, __global const float* restrict positions,
                              __global const float* restrict rays, __global const float* restrict grid, const int nx,
-                             const int ny, const int nz, const float depth_scale, __global float* restrict visibility) {
+                             const int ny, const int nz, const float depth_scale, __global float* restrict visibility,
+                             const uint cols) {
   const uint tile = get_global_id(0);
   if (tile >= n_tiles) return;
   float16 px, py, pz;
@@ -87,7 +88,7 @@ __kernel void march_to_light(const uint n_tiles, __global const float* restrict 
   const float16 light_distance = sqrt(fma(lx, lx, fma(ly, ly, lz * lz)));
   const float16 tau = march_depth16(grid, (int4)(nx, ny, nz, 0), px, py, pz, lx / light_distance, ly / light_distance,
                                     lz / light_distance, light_distance);
-  tile_store(visibility, tile, 1, 0, exp(-depth_scale * tau));
+  tile_store(visibility, tile, cols, 0, exp(-depth_scale * tau));
 }
 
 // V from every sample toward every one of n_dirs directions (dirs: n_dirs x 3 tiled), to the exit of the box:

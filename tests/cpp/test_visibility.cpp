@@ -59,10 +59,12 @@ std::pair<double, double> shadow_segment(const V3& x, const V3& light) {
 
 struct Setup {
   std::vector<float> rays;
-  std::vector<float> positions, visibility;
+  std::vector<float> positions, visibility;  // visibility: column 0 of the marched matrix
+  std::vector<float> other_columns;          // its columns 1 .. cols - 1, filled with 7 before the march
 };
 
-Setup run(const Device& d, const std::vector<float>& grid, int n, std::uint32_t steps, float depth_scale = 1.0f) {
+Setup run(const Device& d, const std::vector<float>& grid, int n, std::uint32_t steps, float depth_scale = 1.0f,
+          std::uint32_t cols = 1) {
   const std::uint32_t n_rays = 6, n_samples = 16;
   std::mt19937 rng(4);
   std::uniform_real_distribution<float> u(-1, 1);
@@ -78,11 +80,15 @@ Setup run(const Device& d, const std::vector<float>& grid, int n, std::uint32_t 
   }
   render::VolumeRenderer renderer(d, {n_samples, -1, 1});
   Buffer<float> r(d, rays), t(d, n_rays * n_samples), delta(d, n_rays * n_samples);
-  BatchMatrix pos(d, n_rays * n_samples, 3), vis(d, n_rays * n_samples, 1);
+  BatchMatrix pos(d, n_rays * n_samples, 3), vis(d, n_rays * n_samples, cols);
+  vis.upload_row_major(std::vector<float>(std::size_t(n_rays) * n_samples * cols, 7.0f));
   renderer.sample(r, n_rays, true, 3, t, delta, pos);
   render::DensityGrid g{{n, n, n}, Buffer<float>(d, grid)};
   render::march_visibility(d, r, n_rays, n_samples, pos, g, steps, vis, depth_scale);
-  return {rays, pos.download_row_major(), vis.download_row_major()};
+  Setup s{rays, pos.download_row_major(), {}, {}};
+  const auto all = vis.download_row_major();
+  for (std::size_t i = 0; i < all.size(); ++i) (i % cols == 0 ? s.visibility : s.other_columns).push_back(all[i]);
+  return s;
 }
 
 }  // namespace
@@ -95,6 +101,17 @@ TEST(Visibility, HomogeneousGridTransmitsExpMinusSigmaD) {
     const double d = shadow_segment(x, light_position(ray)).second;
     EXPECT_NEAR(s.visibility[i], std::exp(-0.8 * d), 2e-6) << i;
   }
+}
+
+// A visibility net's output matrix (NeRV's V, D): the march writes V into column 0, the same values as into a
+// one-column matrix, and leaves the other columns as they were.
+TEST(Visibility, MarchWritesTheFirstColumnOfAWiderMatrix) {
+  const Device d = test::test_device();
+  const std::vector<float> grid(8, 0.8f);
+  const auto one = run(d, grid, 2, 32), wide = run(d, grid, 2, 32, 1.0f, 3);
+  EXPECT_EQ(wide.visibility, one.visibility);
+  ASSERT_EQ(wide.other_columns.size(), 2 * one.visibility.size());
+  for (const float v : wide.other_columns) ASSERT_EQ(v, 7.0f);
 }
 
 // The SH head's optical-depth input: exp(-k tau) for the same march.

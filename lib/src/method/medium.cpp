@@ -196,13 +196,8 @@ void MediumModel::forward_visibility(MediumPass& pass, Buffer<float>& rays, std:
   const std::uint32_t n_env = env ? env->size() : 0;
   const std::uint32_t n_sh = m_renderer->n_sh();
   const nn::ConstParamSlice psi{&m_vis_params, 0};
-  if (march && pass.vis.cols() == 1) {
+  if (march) {  // V into the first of V_ψ's columns (NeRV's V_ψ also gives D)
     render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps, pass.vis);
-  } else if (march) {  // V_ψ has more outputs than V (NeRV's V, D): V into its first column
-    nn::ensure_rows(pass.vis_march, m_device, n, 1);
-    render::march_visibility(m_device, rays, n_rays, spr, pass.positions, m_grid, m_settings.march_steps,
-                             pass.vis_march);
-    nn::copy_columns(m_device, pass.vis_march, 0, pass.vis, 0, 1);
   } else {
     // The render loss does not train ψ: inference, its scratch in the workspace visibility_step() reuses.
     m_visibility->inference(m_device, psi, pass.vis_in, pass.vis, *pass.ws_visibility);

@@ -23,10 +23,9 @@ void march_visibility(const Device& device, const Buffer<float>& rays, std::uint
                       const nn::BatchMatrix& positions, const DensityGrid& grid, std::uint32_t steps,
                       nn::BatchMatrix& visibility, float depth_scale) {
   const std::uint64_t n = std::uint64_t(n_rays) * n_samples;
-  if (positions.batch() != n || positions.cols() != 3 || visibility.cols() != 1)
+  if (positions.batch() != n || positions.cols() != 3 || visibility.cols() == 0)
     throw InvalidArgument("march_visibility: expected " + std::to_string(n) +
-                          " sample positions (3 columns) and a "
-                          "1-column visibility matrix");
+                          " sample positions (3 columns) and a visibility matrix with a column");
   if (n_samples == 0 || n_samples % nn::kBatchTile != 0)
     throw InvalidArgument("march_visibility: samples per ray must be a positive multiple of 16, got " +
                           std::to_string(n_samples));
@@ -38,7 +37,7 @@ void march_visibility(const Device& device, const Buffer<float>& rays, std::uint
       .kernel("visibility.cl", "march_to_light",
               {{"N_SAMPLES", std::to_string(n_samples)}, {"MARCH_STEPS", std::to_string(steps)}})
       .args(static_cast<std::uint32_t>(n / nn::kBatchTile), positions.data(), rays, grid.sigma, grid.dims[0],
-            grid.dims[1], grid.dims[2], depth_scale, visibility.data())
+            grid.dims[1], grid.dims[2], depth_scale, visibility.data(), visibility.cols())
       .launch(n / nn::kBatchTile, 16);
 }
 

@@ -121,8 +121,7 @@ struct MediumPass : ModelPass {
   std::uint32_t n_samples = 0;  ///< samples per ray of the last forward pass
   Buffer<float> t, delta, color, transmittance;
   nn::BatchMatrix positions, net_pos, props_raw, light_in, indirect_raw, vis_in, vis, props, radiance;
-  nn::BatchMatrix depth_in;   // indirect.optical_depth_input: exp(-k τ) toward the light, marched
-  nn::BatchMatrix vis_march;  // a marched V when the visibility net has more outputs than V (NeRV's V, D)
+  nn::BatchMatrix depth_in;  // indirect.optical_depth_input: exp(-k τ) toward the light, marched
   nn::BatchMatrix d_props, d_radiance, d_props_raw, d_indirect_raw, d_light_in;
   nn::BatchMatrix vis_in_sub, positions_sub, vis_sub, vis_target, d_vis;  // the visibility net's training subset
   // With an environment: V_ψ's inputs toward the N_e directions (sample-major rows s N_e + j), its outputs, the

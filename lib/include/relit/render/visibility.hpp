@@ -17,8 +17,9 @@ struct DensityGrid {
   Buffer<float> sigma;
 };
 
-/// visibility (n_rays * n_samples x 1) = exp(-optical depth) from each sample position (as placed by
-/// VolumeRenderer::sample) toward the point light of its ray, marched in `steps` midpoint steps. With
+/// Column 0 of visibility (n_rays * n_samples rows, any number of columns: a visibility net's outputs, of which
+/// V is the first; the others are left as they are) = exp(-optical depth) from each sample position (as placed
+/// by VolumeRenderer::sample) toward the point light of its ray, marched in `steps` midpoint steps. With
 /// `depth_scale` k the result is exp(-k * optical depth) instead (k = 1: the visibility).
 void march_visibility(const Device& device, const Buffer<float>& rays, std::uint32_t n_rays, std::uint32_t n_samples,
                       const nn::BatchMatrix& positions, const DensityGrid& grid, std::uint32_t steps,
