@@ -39,10 +39,12 @@ inline std::uint32_t rays_in_share(std::uint32_t n_rays, float fraction) {
 /// stride-th ray, so the subset's rays are the first `local` rays of the pass).
 struct Subset {
   std::uint32_t local = 0, global = 0;
+  std::uint32_t batch = 0;  // the global batch the subset is a share of
 };
 inline Subset visibility_subset(std::uint32_t n_rays, float fraction, parallel::Share share, std::uint32_t batch_rays) {
-  const std::uint32_t global = rays_in_share(batch_rays ? batch_rays : n_rays, fraction);
-  return {std::min(n_rays, share.count(global)), global};
+  const std::uint32_t batch = batch_rays ? batch_rays : n_rays;
+  const std::uint32_t global = rays_in_share(batch, fraction);
+  return {std::min(n_rays, share.count(global)), global, batch};
 }
 
 /// Grows `b` to at least `count` floats (scratch reused across passes).

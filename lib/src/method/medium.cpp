@@ -318,8 +318,7 @@ void MediumModel::add_shadow_gradient(MediumPass& pass, const Buffer<float>& ray
   if (subset.local == 0) return;  // this rank holds none of the global batch's first rays
   // The first rays of the pass are its share of the global batch's first subset.global rays: their gradient is
   // scaled by batch / subset, so that it estimates the whole batch's.
-  const double batch = pass.batch_rays ? pass.batch_rays : pass.n_rays;
-  const float scale = float(batch / subset.global);
+  const float scale = float(double(subset.batch) / subset.global);
   const std::uint32_t rows = subset.local * spr * g.points;
   const std::uint32_t cols = prop_heads() + m_settings.n_features;
   nn::ensure_rows(pass.shadow_pos, m_device, rows, 3);
