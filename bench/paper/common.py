@@ -284,6 +284,9 @@ def markdown_table(header, rows):
 
 
 def fmt(v):
+    """A table cell: floats to 4 decimals below 1.5 and 2 above, a missing value (None) as a dash."""
+    if v is None:
+        return "–"
     if isinstance(v, float):
         return "%.4f" % v if abs(v) < 1.5 else "%.2f" % v
     return str(v)

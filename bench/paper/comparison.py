@@ -101,10 +101,8 @@ def compare(r, args, datasets, methods, results, sweeps, title):
                                                     "object": obj, "minutes": round(minutes, 2),
                                                     "convergence": conv}
             ratio = conv["ratio"]
-            rows.append([label, "%g" % lrs[method], psnr, ssim, obj["psnr"] if obj["psnr"] is not None else "–",
-                         obj["ssim"] if obj["ssim"] is not None else "–",
-                         "%.3g" % obj["rel_mse"] if obj["rel_mse"] is not None else "–",
-                         obj["flip"] if obj["flip"] is not None else "–", "%.1f" % minutes,
+            rows.append([label, "%g" % lrs[method], psnr, ssim, obj["psnr"], obj["ssim"],
+                         None if obj["rel_mse"] is None else "%.3g" % obj["rel_mse"], obj["flip"], "%.1f" % minutes,
                          "–" if ratio is None else "%.2f%s" % (ratio, convergence_mark(conv))])
         clipped = results[name][methods[-1][1]]["object"]["clipped"]
         lines += ["### " + name + ("" if clipped is None else " (%.1f %% of the object's pixels clip)" % (100 * clipped)),
