@@ -41,13 +41,13 @@ _CI_MODEL = {
     },
 }
 
-# The `ci` scale's tiny model per method: each method's structure, at the size of _CI_MODEL; the baselines train
-# their direct light as their presets do (the marched shadow and its gradient, docs/baselines.md).
+# The `ci` scale's tiny model per method: each method's structure, at the size of _CI_MODEL; the baselines and
+# Ours + BRDF train their direct light as their presets do (the marched shadow and its gradient, docs/baselines.md).
 _CI_MLP = {"type": "FullyFusedMLP", "n_neurons": 16, "n_hidden_layers": 1}
 _CI_SHADOW = {"training_visibility": "march", "shadow_gradient": {"enabled": True}}
 CI_MODELS = {
     "ours": _CI_MODEL,
-    "ours_brdf": _CI_MODEL,
+    "ours_brdf": {**_CI_MODEL, **_CI_SHADOW},
     "bi": {"renderer": {"n_samples": 16, "n_fine_samples": 16},
            "density_grid": _CI_MODEL["density_grid"],
            "property": _CI_MODEL["property"],

@@ -20,12 +20,11 @@ MEDIA_METHODS = [("Bi et al.", "bi"), ("NeRV", "nerv"), ("Ours", "ours")]
 SOLID_METHODS = [("Bi et al.", "bi"), ("NeRV", "nerv"), ("Ours + BRDF", "ours_brdf"), ("Ours", "ours")]
 MEDIA = [("cloud", "point"), ("cloud", "env+point"), ("smoke", "point"), ("smoke", "env+point"), ("thin", "point")]
 SOLIDS = [("spheres", "point"), ("torus", "point")]
-# On solids Ours and Ours + BRDF shade their training renders with the density grid's march toward the light and
-# pass the render loss's gradient through that shadow (as the baselines' presets do on every scene): the surface's
-# self-shadow is sharp, the visibility network trails it, and the property network learns to make up for its
-# errors per training light instead of the shading (docs/results.md, "Solids").
-SOLID_MODEL = {"ours": {"training_visibility": "march", "shadow_gradient": {"enabled": True}},
-               "ours_brdf": {"training_visibility": "march", "shadow_gradient": {"enabled": True}}}
+# On solids Ours shades its training renders with the density grid's march toward the light and passes the render
+# loss's gradient through that shadow, as the presets of the baselines and of Ours + BRDF do on every scene: the
+# surface's self-shadow is sharp, the visibility network trails it, and the property network learns to make up for
+# its errors per training light instead of the shading (docs/results.md, "Solids at 128x128").
+SOLID_MODEL = {"ours": {"training_visibility": "march", "shadow_gradient": {"enabled": True}}}
 # A thin medium of the paper's kind (its Bunny and Buddha clouds): the smoke's fine structure at a quarter of
 # the cloud's density scale, so that single scattering carries much of the image.
 THIN = {"medium": {"source": {"type": "smoke", "resolution": 64, "seed": 3}, "density_scale": 5.0,
