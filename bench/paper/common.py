@@ -44,22 +44,23 @@ _CI_MODEL = {
 # The `ci` scale's tiny model per method: each method's structure, at the size of _CI_MODEL; the baselines and
 # Ours + BRDF train their direct light as their presets do (the marched shadow and its gradient, docs/baselines.md).
 _CI_MLP = {"type": "FullyFusedMLP", "n_neurons": 16, "n_hidden_layers": 1}
-_CI_SHADOW = {"training_visibility": "march", "shadow_gradient": {"enabled": True}}
+# The model keys of the marched shadow and its gradient (the baselines' and Ours + BRDF's presets).
+MARCHED_SHADOW = {"training_visibility": "march", "shadow_gradient": {"enabled": True}}
 CI_MODELS = {
     "ours": _CI_MODEL,
-    "ours_brdf": {**_CI_MODEL, **_CI_SHADOW},
+    "ours_brdf": {**_CI_MODEL, **MARCHED_SHADOW},
     "bi": {"renderer": {"n_samples": 16, "n_fine_samples": 16},
            "density_grid": _CI_MODEL["density_grid"],
            "property": _CI_MODEL["property"],
            "coarse": _CI_MODEL["property"],
-           "visibility": _CI_MODEL["visibility"], "inference_visibility": "march", **_CI_SHADOW},
+           "visibility": _CI_MODEL["visibility"], "inference_visibility": "march", **MARCHED_SHADOW},
     "nerv": {"renderer": {"n_samples": 16},
              "bounce": {"n_dirs": 4, "n_dirs_env": 2},
              "density_grid": _CI_MODEL["density_grid"],
              "property": _CI_MODEL["property"],
              "visibility": {"position_encoding": _CI_MODEL["visibility"]["position_encoding"],
                             "direction_encoding": _CI_MODEL["visibility"]["direction_encoding"],
-                            "trunk": _CI_MLP, "network": _CI_MLP}, **_CI_SHADOW},
+                            "trunk": _CI_MLP, "network": _CI_MLP}, **MARCHED_SHADOW},
 }
 
 SCALES = {

@@ -24,7 +24,7 @@ SOLIDS = [("spheres", "point"), ("torus", "point")]
 # loss's gradient through that shadow, as the presets of the baselines and of Ours + BRDF do on every scene: the
 # surface's self-shadow is sharp, the visibility network trails it, and the property network learns to make up for
 # its errors per training light instead of the shading (docs/results.md, "Solids at 128x128").
-SOLID_MODEL = {"ours": {"training_visibility": "march", "shadow_gradient": {"enabled": True}}}
+SOLID_MODEL = {"ours": common.MARCHED_SHADOW}
 # A thin medium of the paper's kind (its Bunny and Buddha clouds): the smoke's fine structure at a quarter of
 # the cloud's density scale, so that single scattering carries much of the image.
 THIN = {"medium": {"source": {"type": "smoke", "resolution": 64, "seed": 3}, "density_scale": 5.0,
