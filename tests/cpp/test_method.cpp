@@ -609,6 +609,10 @@ TEST(Method, CheckRunConfigReadsWhatTheTrainerReadsWithoutADevice) {
   EXPECT_EQ(pointer_of({{"model", {{"renderer", {{"n_samples", 20}}}}}}), "/model/renderer/n_samples");
   EXPECT_EQ(pointer_of({{"method", "nerv"}, {"model", {{"bounce", {{"n_dirs", 0}}}}}}), "/model/bounce/n_dirs");
   EXPECT_EQ(pointer_of({{"colour", 1}}), "/colour");
+  // A run's config.json names its dataset: accepted as input (the dataset argument decides), not resolved.
+  EXPECT_EQ(pointer_of({{"dataset", "/data/elsewhere"}}), "(accepted)");
+  EXPECT_FALSE(method::check_run_config({{"dataset", "/data/elsewhere"}}).contains("dataset"));
+  EXPECT_EQ(pointer_of({{"dataset", 3}}), "/dataset");
   EXPECT_THROW(method::check_run_config(Json::array()), ConfigError);
 }
 

@@ -87,6 +87,13 @@ def test_cli_train_resume_and_render(dataset, tmp_path):
     r = run_python(["-m", "relit", "train", dataset, "--out", run, "--steps", "6", "--resume"])
     assert r.returncode == 0, r.stderr
     assert "trained 6 steps" in r.stdout
+    # A run's config.json (which names the dataset it trained on) trains another run as it is.
+    again = str(tmp_path / "again")
+    r = run_python(["-m", "relit", "train", dataset, "--config", os.path.join(run, "config.json"), "--out", again,
+                    "--steps", "2"])
+    assert r.returncode == 0, r.stderr
+    assert json.load(open(os.path.join(again, "config.json")))["model"] == json.load(
+        open(os.path.join(run, "config.json")))["model"]
     png = str(tmp_path / "relit.png")
     r = run_python(["-m", "relit", "render", run, "--view", dataset + ":test:0", "--out", png])
     assert r.returncode == 0, r.stderr

@@ -81,9 +81,11 @@ std::string config_reference_markdown() {
   describe(out, nn::optimizers(), "Optimizers", "Optimisers update a model's flat parameter buffer.");
   out << "## Run config\n\n"
          "`relit train --config FILE.json` and `relit.Trainer(config=...)` take a run config: `{\"method\", "
-         "\"model\", \"training\"}`. The presets (configs/*.json: `fast` and `paper` for Ours, `bi-fast`, "
-         "`bi-paper`, `nerv-fast`, `nerv-paper` for the baselines) are complete examples; "
-         "a key left out takes the default below. Keys of type *component* take an encoding, network, loss or "
+         "\"model\", \"training\"}`. The presets (configs/*.json: `fast` and `paper` for Ours, `ours_brdf-fast` "
+         "and `ours_brdf-paper` for Ours + BRDF, `bi-fast`, `bi-paper`, `nerv-fast`, `nerv-paper` for the "
+         "baselines) are complete examples, and so is a run's config.json (every key resolved; its `dataset` is "
+         "ignored, the dataset argument decides); a key left out takes the default below. Keys of type *component* "
+         "take an encoding, network, loss or "
          "optimizer object from the sections above (the model sets the networks' output heads itself). See "
          "docs/method.md and docs/baselines.md. The `/model` keys depend on the method.\n\n";
   for (const auto& [pointer, docs] : method::run_config_docs()) {

@@ -64,6 +64,10 @@ Json read_run_keys(config::Reader& r) {
   std::string listing;
   for (const auto& m : methods().entries()) listing += (listing.empty() ? "" : "; ") + m.name + " (" + m.summary + ")";
   r.choice("method", "ours", method_names(), "the method: " + listing);
+  // A run's config.json names the dataset it trained on, so that a run's config trains another run as it is.
+  r.string("dataset", "",
+           "the dataset a run trained on: relit writes it into the run's config.json; ignored as input (the dataset "
+           "argument decides)");
   return r.sub("model", Json::object(), "object", "the model (the /model objects below)");
 }
 
@@ -103,7 +107,9 @@ Json check_run_config(const Json& config) {
   read_training_section(r);
   r.set_resolved("model", check_model_config(method, model, "/model"));
   r.finish();
-  return r.resolved();
+  Json resolved = r.resolved();
+  resolved.erase("dataset");
+  return resolved;
 }
 
 config::Docs run_config_docs() {
