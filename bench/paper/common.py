@@ -42,13 +42,14 @@ _CI_MODEL = {
 }
 
 # The `ci` scale's tiny model per method: each method's structure, at the size of _CI_MODEL; the baselines and
-# Ours + BRDF train their direct light as their presets do (the marched shadow and its gradient, docs/baselines.md).
+# Ours + BRDF train their direct light as their presets do (the marched shadow and its gradient, docs/baselines.md),
+# and Bi et al. and Ours + BRDF render with the march as theirs do.
 _CI_MLP = {"type": "FullyFusedMLP", "n_neurons": 16, "n_hidden_layers": 1}
 # The model keys of the marched shadow and its gradient (the baselines' and Ours + BRDF's presets).
 MARCHED_SHADOW = {"training_visibility": "march", "shadow_gradient": {"enabled": True}}
 CI_MODELS = {
     "ours": _CI_MODEL,
-    "ours_brdf": {**_CI_MODEL, **MARCHED_SHADOW},
+    "ours_brdf": {**_CI_MODEL, **MARCHED_SHADOW, "inference_visibility": "march"},
     "bi": {"renderer": {"n_samples": 16, "n_fine_samples": 16},
            "density_grid": _CI_MODEL["density_grid"],
            "property": _CI_MODEL["property"],

@@ -23,8 +23,11 @@ SOLIDS = [("spheres", "point"), ("torus", "point")]
 # On solids Ours shades its training renders with the density grid's march toward the light and passes the render
 # loss's gradient through that shadow, as the presets of the baselines and of Ours + BRDF do on every scene: the
 # surface's self-shadow is sharp, the visibility network trails it, and the property network learns to make up for
-# its errors per training light instead of the shading (docs/results.md, "Solids at 128x128").
-SOLID_MODEL = {"ours": common.MARCHED_SHADOW}
+# its errors per training light instead of the shading. Its SH head sees that V (a phase function has no normal,
+# so the head paints the terminator), and it renders with the march its head was trained on, as Ours + BRDF's
+# presets do (docs/results.md, "Solids at 128x128").
+SOLID_MODEL = {"ours": {**common.MARCHED_SHADOW, "inference_visibility": "march",
+                        "indirect": {"visibility_input": True}}}
 # A thin medium of the paper's kind (its Bunny and Buddha clouds): the smoke's fine structure at a quarter of
 # the cloud's density scale, so that single scattering carries much of the image.
 THIN = {"medium": {"source": {"type": "smoke", "resolution": 64, "seed": 3}, "density_scale": 5.0,

@@ -43,12 +43,15 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
                 assert v["lr"] == sweep[method]["chosen"] and "%g" % v["lr"] == max(scores, key=scores.get)
                 assert 0 < v["object"]["psnr"] < 100 and 0 <= v["object"]["flip"] <= 1
                 assert set(v["convergence"]) == {"early", "last", "ratio", "converged", "rising"}
-    # On solids Ours and Ours + BRDF train with the marched shadow and its gradient; on media Ours keeps its preset.
+    # On solids Ours and Ours + BRDF train and render with the marched shadow (and its gradient), Ours' SH head sees
+    # it; on media Ours keeps its preset.
     for part, method, march in (("solids", "ours", True), ("solids", "ours_brdf", True), ("media", "ours", False)):
         for runs in cmp[part].values():
             model = json.load(open(os.path.join(runs[method]["run"], "config.json")))["model"]
             assert (model["training_visibility"] == "march") == march, (part, method)
+            assert (model["inference_visibility"] == "march") == march, (part, method)
             assert model["shadow_gradient"]["enabled"] == march, (part, method)
+            assert model["indirect"]["visibility_input"] == (march and method == "ours"), (part, method)
     assert set(cmp["gaps"]) == {"cloud-point", "cloud-envpoint"}
     assert any(k.startswith("no run runs away") for k in cmp["checks"])
     assert any(k.startswith("no run's loss rises") for k in cmp["checks"])
