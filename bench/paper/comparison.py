@@ -84,7 +84,7 @@ def sweep(r, args, dataset, name, methods, results, model=None):
             run = r.train("sweep-%s-%s-lr%g" % (name, method, lr), dataset, cfg)
             scores[lr] = common.split_means(r.evaluate(run, splits=["val"]), "val")[0]
         chosen[method] = max(scores, key=lambda lr: scores[lr])
-        results[method] = {"dataset": name, "steps": args.sweep_steps, "val_psnr": {"%g" % k: v for k, v in scores.items()},
+        results[method] = {"steps": args.sweep_steps, "val_psnr": {"%g" % k: v for k, v in scores.items()},
                            "chosen": chosen[method]}
     return chosen
 
@@ -189,9 +189,10 @@ def main():
     results["checks"] = checks
     sweep_lines = []
     for part, by_dataset in results["lr_sweep"].items():
-        for method, v in ((m, v) for sw in by_dataset.values() for m, v in sw.items()):
-            sweep_lines.append([part, method, v["dataset"], v["steps"],
-                                ", ".join("%s: %.2f" % kv for kv in v["val_psnr"].items()), "%g" % v["chosen"]])
+        for name, sw in by_dataset.items():
+            for method, v in sw.items():
+                sweep_lines.append([part, method, name, v["steps"],
+                                    ", ".join("%s: %.2f" % kv for kv in v["val_psnr"].items()), "%g" % v["chosen"]])
     if sweep_lines:
         tables.append(["## Learning rates (validation PSNR [dB] of the sweep)", ""] + common.markdown_table(
             ["part", "method", "dataset", "steps", "val PSNR per rate", "chosen"], sweep_lines))
