@@ -8,6 +8,11 @@ lights with both protocols (the whole image, and the object's pixels; docs/evalu
     python bench/paper/comparison.py --scale laptop128 --out results/comparison        # docs/results.md
     python bench/paper/comparison.py --scale laptop --part media --scenes cloud thin
     python bench/paper/comparison.py --scale laptop --lr-sweep 0.01                   # no sweep: one rate
+    python bench/paper/comparison.py --scale laptop128 --part media --datasets smoke-point --methods nerv \
+        --rates bi=3e-3 nerv=1e-2 ours=3e-3                                           # an earlier sweep's rates
+
+Runs are deterministic (counter-based randomness, fixed-order reductions), so a table can be completed over several
+invocations: --datasets and --methods pick its cells, --rates gives the rates an earlier sweep chose.
 """
 import argparse
 import os
@@ -57,9 +62,32 @@ def parse_args():
                    help="learning rates each method is tried with on the media's first dataset and on every solid "
                         "(one value: no sweep); the best on the validation split trains the part's datasets, or the "
                         "solid")
+    p.add_argument("--datasets", nargs="+", default=None, metavar="NAME",
+                   help="only these datasets (<scene>-<lighting> without '+': cloud-point cloud-envpoint ...)")
+    p.add_argument("--methods", nargs="+", default=None, metavar="METHOD",
+                   help="only these methods (bi nerv ours ours_brdf; default: all of the part's)")
+    p.add_argument("--rates", nargs="+", type=rate, default=None, metavar="METHOD=LR",
+                   help="the learning rate of each method, as an earlier sweep chose it: no sweep (every method run "
+                        "needs one)")
     p.add_argument("--sweep-steps", type=int, default=None,
                    help="training steps of a sweep run (default: a third of the steps, at least 30)")
     return p.parse_args()
+
+
+def rate(text):
+    """'METHOD=LR' of --rates as (method, lr)."""
+    method, sep, lr = text.partition("=")
+    try:
+        if not sep or not method:
+            raise ValueError(text)
+        return method, float(lr)
+    except ValueError:
+        raise argparse.ArgumentTypeError("expected METHOD=LR (e.g. ours=3e-3), got %r" % text)
+
+
+def dataset_name(scene, lighting):
+    """The name of a (scene, lighting) pair: its data, runs and table, e.g. 'cloud-envpoint'."""
+    return "%s-%s" % (scene, lighting.replace("+", ""))
 
 
 def with_lr(r, method, lr, model=None):
@@ -74,6 +102,10 @@ def sweep(r, args, dataset, name, methods, results, model=None):
     `dataset`, scored by the validation split's PSNR (the paper's protocol)."""
     chosen = {}
     for _, method in methods:
+        if args.rates is not None:
+            chosen[method] = args.rates[method]
+            results[method] = {"chosen": chosen[method], "given": True}
+            continue
         if len(args.lr_sweep) == 1:
             chosen[method] = args.lr_sweep[0]
             continue
@@ -95,7 +127,7 @@ def compare(r, args, datasets, methods, results, sweeps, title, model=None, swee
     Markdown tables."""
     data = {}
     for scene, lighting in datasets:
-        name = "%s-%s" % (scene, lighting.replace("+", ""))
+        name = dataset_name(scene, lighting)
         data[name] = r.dataset(name, scene=THIN if scene == "thin" else scene, lighting=lighting)
     lines = ["## " + title, ""]
     header = ["method", "lr", "PSNR", "SSIM", "object PSNR", "object SSIM", "object relMSE", "object FLIP", "min",
@@ -163,23 +195,44 @@ def gaps(results):
 
 def main():
     args = parse_args()
+    scenes = set(args.scenes) if args.scenes else (CI_SCENES if args.scale == "ci" else None)
+    pick = lambda pairs: [p for p in pairs if (scenes is None or p[0] in scenes)  # noqa: E731
+                          and (args.datasets is None or dataset_name(*p) in args.datasets)]
+    only = lambda methods: [m for m in methods if args.methods is None or m[1] in args.methods]  # noqa: E731
+    if args.rates is not None:
+        args.rates = dict(args.rates)
+        parts = {"media": MEDIA_METHODS, "solids": SOLID_METHODS}
+        needed = {m for part, methods in parts.items() if args.part in (part, "all") for _, m in only(methods)}
+        missing = sorted(needed - set(args.rates))
+        if missing:
+            sys.exit("comparison: --rates gives no learning rate for " + ", ".join(missing))
+    known = {dataset_name(*p) for p in MEDIA + SOLIDS}
+    if args.datasets is not None and set(args.datasets) - known:
+        sys.exit("comparison: unknown dataset(s) %s (known: %s)" % (", ".join(sorted(set(args.datasets) - known)),
+                                                                    ", ".join(sorted(known))))
+    methods = {m for _, m in MEDIA_METHODS + SOLID_METHODS}
+    if args.methods is not None and set(args.methods) - methods:
+        sys.exit("comparison: unknown method(s) %s (known: %s)" % (", ".join(sorted(set(args.methods) - methods)),
+                                                                   ", ".join(sorted(methods))))
+    media = args.part in ("media", "all") and pick(MEDIA) and only(MEDIA_METHODS)
+    solids = args.part in ("solids", "all") and pick(SOLIDS) and only(SOLID_METHODS)
+    if not media and not solids:
+        sys.exit("comparison: --part, --scenes, --datasets and --methods select no run")
     r = common.Relit(args.out, args.scale, args.seed, args.device, args.steps)
     if args.sweep_steps is None:
         args.sweep_steps = max(30, r.steps // 3)
-    scenes = set(args.scenes) if args.scenes else (CI_SCENES if args.scale == "ci" else None)
-    pick = lambda pairs: [p for p in pairs if scenes is None or p[0] in scenes]  # noqa: E731
     results = {"experiment": "comparison", "media": {}, "solids": {}, "lr_sweep": {"media": {}, "solids": {}},
                "paper": PAPER, "learning_rates": args.lr_sweep}
     tables, checks = [], {}
-    if args.part in ("media", "all") and pick(MEDIA):
-        tables.append(compare(r, args, pick(MEDIA), MEDIA_METHODS, results["media"], results["lr_sweep"]["media"],
-                              "Participating media"))
+    if media:
+        tables.append(compare(r, args, pick(MEDIA), only(MEDIA_METHODS), results["media"],
+                              results["lr_sweep"]["media"], "Participating media"))
         checks.update(orderings(results["media"], ["ours", "nerv", "bi"]))
         results["gaps"], lines = gaps(results["media"])
         tables.append(lines)
-    if args.part in ("solids", "all") and pick(SOLIDS):
-        tables.append(compare(r, args, pick(SOLIDS), SOLID_METHODS, results["solids"], results["lr_sweep"]["solids"],
-                              "Glossy solids", SOLID_MODEL, sweep_each=True))
+    if solids:
+        tables.append(compare(r, args, pick(SOLIDS), only(SOLID_METHODS), results["solids"],
+                              results["lr_sweep"]["solids"], "Glossy solids", SOLID_MODEL, sweep_each=True))
         checks.update(orderings(results["solids"], ["ours", "nerv", "bi"]))
     runs = [v for part in ("media", "solids") for d in results[part].values() for v in d.values()]
     checks["no run runs away (loss over the last 10 % at most half of step 200's)"] = all(
@@ -191,8 +244,8 @@ def main():
     for part, by_dataset in results["lr_sweep"].items():
         for name, sw in by_dataset.items():
             for method, v in sw.items():
-                sweep_lines.append([part, method, name, v["steps"],
-                                    ", ".join("%s: %.2f" % kv for kv in v["val_psnr"].items()), "%g" % v["chosen"]])
+                scores = ", ".join("%s: %.2f" % kv for kv in v.get("val_psnr", {}).items()) or "given (--rates)"
+                sweep_lines.append([part, method, name, v.get("steps", "–"), scores, "%g" % v["chosen"]])
     if sweep_lines:
         tables.append(["## Learning rates (validation PSNR [dB] of the sweep)", ""] + common.markdown_table(
             ["part", "method", "dataset", "steps", "val PSNR per rate", "chosen"], sweep_lines))

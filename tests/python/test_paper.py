@@ -16,6 +16,13 @@ def run(args, tmp_path):
     return r
 
 
+def compare(args, out, check=True):
+    r = subprocess.run([sys.executable, os.path.join(PAPER, "comparison.py"), "--scale", "ci", "--out", str(out)] + args,
+                       capture_output=True, text=True)
+    assert not check or r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    return r
+
+
 def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
     run([], tmp_path)
     sh = json.load(open(tmp_path / "sh_ablation" / "results.json"))
@@ -64,6 +71,20 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
               "generalization/distance.png", "generalization/intensity.png", "comparison/comparison.png"]:
         assert os.path.getsize(tmp_path / f) > 0, f
     assert "| SH-5 |" in (tmp_path / "sh_ablation" / "results.md").read_text()
+    # One cell of the comparison, trained afresh in another folder with the rate the sweep chose, scores what it
+    # scored in the whole table (runs are deterministic, so a table can be completed over several invocations).
+    nerv = cmp["media"]["cloud-envpoint"]["nerv"]
+    part = compare(["--part", "media", "--datasets", "cloud-envpoint", "--methods", "nerv",
+                    "--rates", "nerv=%g" % nerv["lr"]], tmp_path / "cell")
+    assert "relit train" in part.stdout and "sweep" not in part.stdout, part.stdout
+    cell = json.load(open(tmp_path / "cell" / "results.json"))
+    assert set(cell["media"]) == {"cloud-envpoint"} and set(cell["media"]["cloud-envpoint"]) == {"nerv"}
+    assert cell["media"]["cloud-envpoint"]["nerv"]["psnr"] == nerv["psnr"]
+    assert cell["lr_sweep"]["media"]["cloud-envpoint"]["nerv"] == {"chosen": nerv["lr"], "given": True}
+    for bad, why in ((["--rates", "nerv"], "expected METHOD=LR"), (["--rates", "bi=0.01"], "no learning rate for"),
+                     (["--datasets", "fog-point"], "unknown dataset"), (["--methods", "mlp"], "unknown method")):
+        r = compare(["--part", "media"] + bad, tmp_path / "bad", check=False)
+        assert r.returncode != 0 and why in r.stderr, (bad, r.stderr[-2000:])
     # A rerun trains nothing and evaluates nothing; an evaluation that went missing is redone alone.
     ckpt = tmp_path / "sh_ablation" / "runs" / "sh-5" / "checkpoint.relit"
     before = os.path.getmtime(ckpt)
