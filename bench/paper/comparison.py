@@ -63,7 +63,8 @@ def parse_args():
                         "(one value: no sweep); the best on the validation split trains the part's datasets, or the "
                         "solid")
     p.add_argument("--datasets", nargs="+", default=None, metavar="NAME",
-                   help="only these datasets (<scene>-<lighting> without '+': cloud-point cloud-envpoint ...)")
+                   help="only these datasets (<scene>-<lighting> without '+': cloud-point cloud-envpoint ...; run in the "
+                        "table's order)")
     p.add_argument("--methods", nargs="+", default=None, metavar="METHOD",
                    help="only these methods (bi nerv ours ours_brdf; default: all of the part's)")
     p.add_argument("--rates", nargs="+", type=rate, default=None, metavar="METHOD=LR",
@@ -78,11 +79,12 @@ def rate(text):
     """'METHOD=LR' of --rates as (method, lr)."""
     method, sep, lr = text.partition("=")
     try:
-        if not sep or not method:
+        value = float(lr)
+        if not sep or not method or not 0 < value < float("inf"):
             raise ValueError(text)
-        return method, float(lr)
+        return method, value
     except ValueError:
-        raise argparse.ArgumentTypeError("expected METHOD=LR (e.g. ours=3e-3), got %r" % text)
+        raise argparse.ArgumentTypeError("expected METHOD=LR with a positive finite LR (e.g. ours=3e-3), got %r" % text)
 
 
 def dataset_name(scene, lighting):

@@ -81,7 +81,8 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
     assert set(cell["media"]) == {"cloud-envpoint"} and set(cell["media"]["cloud-envpoint"]) == {"nerv"}
     assert cell["media"]["cloud-envpoint"]["nerv"]["psnr"] == nerv["psnr"]
     assert cell["lr_sweep"]["media"]["cloud-envpoint"]["nerv"] == {"chosen": nerv["lr"], "given": True}
-    for bad, why in ((["--rates", "nerv"], "expected METHOD=LR"), (["--rates", "bi=0.01"], "no learning rate for"),
+    for bad, why in ((["--rates", "nerv"], "expected METHOD=LR"), (["--rates", "nerv=nan"], "positive finite"),
+                     (["--rates", "bi=0.01"], "no learning rate for"),
                      (["--datasets", "fog-point"], "unknown dataset"), (["--methods", "mlp"], "unknown method")):
         r = compare(["--part", "media"] + bad, tmp_path / "bad", check=False)
         assert r.returncode != 0 and why in r.stderr, (bad, r.stderr[-2000:])
