@@ -208,17 +208,14 @@ def main():
         missing = sorted(needed - set(args.rates))
         if missing:
             sys.exit("comparison: --rates gives no learning rate for " + ", ".join(missing))
-    known = {dataset_name(*p) for p in MEDIA + SOLIDS}
-    if args.datasets is not None and set(args.datasets) - known:
-        sys.exit("comparison: unknown dataset(s) %s (known: %s)" % (", ".join(sorted(set(args.datasets) - known)),
-                                                                    ", ".join(sorted(known))))
-    methods = {m for _, m in MEDIA_METHODS + SOLID_METHODS}
-    if args.methods is not None and set(args.methods) - methods:
-        sys.exit("comparison: unknown method(s) %s (known: %s)" % (", ".join(sorted(set(args.methods) - methods)),
-                                                                   ", ".join(sorted(methods))))
-    media = args.part in ("media", "all") and pick(MEDIA) and only(MEDIA_METHODS)
-    solids = args.part in ("solids", "all") and pick(SOLIDS) and only(SOLID_METHODS)
-    if not media and not solids:
+    for kind, given, known in (("dataset", args.datasets, {dataset_name(*p) for p in MEDIA + SOLIDS}),
+                               ("method", args.methods, {m for _, m in MEDIA_METHODS + SOLID_METHODS})):
+        if given is not None and set(given) - known:
+            sys.exit("comparison: unknown %s(s) %s (known: %s)" % (kind, ", ".join(sorted(set(given) - known)),
+                                                                   ", ".join(sorted(known))))
+    media = (pick(MEDIA), only(MEDIA_METHODS)) if args.part in ("media", "all") else ([], [])
+    solids = (pick(SOLIDS), only(SOLID_METHODS)) if args.part in ("solids", "all") else ([], [])
+    if not all(media) and not all(solids):
         sys.exit("comparison: --part, --scenes, --datasets and --methods select no run")
     r = common.Relit(args.out, args.scale, args.seed, args.device, args.steps)
     if args.sweep_steps is None:
@@ -226,14 +223,14 @@ def main():
     results = {"experiment": "comparison", "media": {}, "solids": {}, "lr_sweep": {"media": {}, "solids": {}},
                "paper": PAPER, "learning_rates": args.lr_sweep}
     tables, checks = [], {}
-    if media:
-        tables.append(compare(r, args, pick(MEDIA), only(MEDIA_METHODS), results["media"],
+    if all(media):
+        tables.append(compare(r, args, *media, results["media"],
                               results["lr_sweep"]["media"], "Participating media"))
         checks.update(orderings(results["media"], ["ours", "nerv", "bi"]))
         results["gaps"], lines = gaps(results["media"])
         tables.append(lines)
-    if solids:
-        tables.append(compare(r, args, pick(SOLIDS), only(SOLID_METHODS), results["solids"],
+    if all(solids):
+        tables.append(compare(r, args, *solids, results["solids"],
                               results["lr_sweep"]["solids"], "Glossy solids", SOLID_MODEL, sweep_each=True))
         checks.update(orderings(results["solids"], ["ours", "nerv", "bi"]))
     runs = [v for part in ("media", "solids") for d in results[part].values() for v in d.values()]
