@@ -9,18 +9,20 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 PAPER = os.path.join(ROOT, "bench", "paper")
 
 
-def run(args, tmp_path):
-    r = subprocess.run([sys.executable, os.path.join(PAPER, "run.py"), "--scale", "ci", "--out", str(tmp_path)] + args,
-                       capture_output=True, text=True)
-    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    return r
-
-
-def compare(args, out, check=True):
-    r = subprocess.run([sys.executable, os.path.join(PAPER, "comparison.py"), "--scale", "ci", "--out", str(out)] + args,
+def script(name, args, out, check=True):
+    """bench/paper/<name> at the ci scale into `out`; asserts it succeeded unless check is False."""
+    r = subprocess.run([sys.executable, os.path.join(PAPER, name), "--scale", "ci", "--out", str(out)] + args,
                        capture_output=True, text=True)
     assert not check or r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     return r
+
+
+def run(args, tmp_path):
+    return script("run.py", args, tmp_path)
+
+
+def compare(args, out, check=True):
+    return script("comparison.py", args, out, check)
 
 
 def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
