@@ -128,9 +128,10 @@ class Relit:
             raise RuntimeError("relit %s failed (exit %d)" % (args[0], r.returncode))
 
     def dataset(self, name, scene="cloud", lighting="point", generalization=False, intensity=None,
-                light_distance=None):
+                light_distance=None, max_bounces=None):
         """Generates OUT/../data/<name>-<scale> unless it is complete (its transforms_test.json exists). `scene` is
-        a built-in name or a scene as a dict (written beside the dataset as <name>-<scale>.scene.json)."""
+        a built-in name or a scene as a dict (written beside the dataset as <name>-<scale>.scene.json);
+        `max_bounces` limits the path tracer's scattering events per path (1: single scattering)."""
         s = self.scale
         path = os.path.join(self.data_root, "%s-%s" % (name, self.scale_name))
         if os.path.exists(os.path.join(path, "transforms_test.json")):
@@ -148,6 +149,8 @@ class Relit:
             args += ["--intensity"] + [str(v) for v in (intensity if isinstance(intensity, (list, tuple)) else [intensity])]
         if light_distance is not None:
             args += ["--light-distance", light_distance[0], light_distance[1]]
+        if max_bounces is not None:
+            args += ["--max-bounces", max_bounces]
         os.makedirs(self.data_root, exist_ok=True)
         self.cli(*args)
         return path
@@ -294,6 +297,11 @@ def fmt(v):
     return str(v)
 
 
+def fmt_sci(v):
+    """A small positive number in three significant digits (a loss: 2.41e-03), a missing one as a dash."""
+    return "–" if v is None else "%.3g" % v
+
+
 def split_means(metrics, split):
     """PSNR and SSIM of a split over the whole image (the paper's protocol)."""
     s = metrics["splits"][split]
@@ -335,26 +343,53 @@ def convergence(run, early=200):
             "rising": bool(t > e)}
 
 
-def plot(path, title, xlabel, series, xticks=None, ylabel="PSNR [dB]"):
-    """A line plot of {label: (xs, ys)} (matplotlib, no display needed)."""
+# One colour per method in every figure.
+METHOD_COLORS = {"Bi et al.": "tab:blue", "NeRV": "tab:orange", "Ours": "tab:green", "Ours + BRDF": "tab:red"}
+
+
+def _figure(size=(5, 3.4)):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(5, 3.4), dpi=120)
-    for label, (xs, ys) in series.items():
-        ax.plot(xs, ys, marker="o", label=label)
+    fig, ax = plt.subplots(figsize=size, dpi=120)
+    return plt, fig, ax
+
+
+def _save(plt, fig, ax, path, title, xlabel, ylabel, legend):
+    """Titles, grid and legend, then the figure written to a temporary name and renamed onto `path`."""
     ax.set_title(title)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    if xticks is not None:
-        ax.set_xticks(range(len(xticks)) if isinstance(xticks[0], str) else xticks)
-        if isinstance(xticks[0], str):
-            ax.set_xticklabels(xticks)
     ax.grid(alpha=0.3)
-    if len(series) > 1:
-        ax.legend()
+    if legend:
+        ax.legend(fontsize="small")
     fig.tight_layout()
     tmp = path + ".tmp.png"
     fig.savefig(tmp)
     plt.close(fig)
     os.replace(tmp, path)
+
+
+def plot(path, title, xlabel, series, xticks=None, ylabel="PSNR [dB]"):
+    """A line plot of {label: (xs, ys)} (matplotlib, no display needed)."""
+    plt, fig, ax = _figure()
+    for label, (xs, ys) in series.items():
+        ax.plot(xs, ys, marker="o", label=label)
+    if xticks is not None:
+        ax.set_xticks(range(len(xticks)) if isinstance(xticks[0], str) else xticks)
+        if isinstance(xticks[0], str):
+            ax.set_xticklabels(xticks)
+    _save(plt, fig, ax, path, title, xlabel, ylabel, len(series) > 1)
+
+
+def plot_lines(path, title, xlabel, ylabel, lines, logy=False):
+    """Curves [(label, xs, ys, matplotlib style)] without markers; xs None draws a horizontal line at ys."""
+    plt, fig, ax = _figure((6.4, 4.2))
+    for label, xs, ys, style in lines:
+        if xs is None:
+            ax.axhline(ys, label=label, linewidth=1, **style)
+        else:
+            ax.plot(xs, ys, label=label, linewidth=1, **style)
+    if logy:
+        ax.set_yscale("log")
+    _save(plt, fig, ax, path, title, xlabel, ylabel, len(lines) > 1)

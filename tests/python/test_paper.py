@@ -97,3 +97,35 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
     assert os.path.getmtime(ckpt) == before
     again = json.load(open(tmp_path / "sh_ablation" / "results.json"))
     assert {k: v["psnr"] for k, v in again["runs"].items()} == {k: v["psnr"] for k, v in sh["runs"].items()}
+
+
+def test_convergence_trains_on_every_bounce_and_on_single_scattering(tmp_path):
+    # Long enough at the ci scale for the loss around step 200 and at the end to exist.
+    r = script("convergence.py", ["--methods", "nerv", "--rates", "nerv=0.01", "--steps", "400"], tmp_path / "conv")
+    res = json.load(open(tmp_path / "conv" / "results.json"))
+    kinds = res["datasets"]["cloud-point"]
+    assert set(kinds) == {"every bounce", "single scattering"}, r.stdout[-2000:]
+    for kind, entry in kinds.items():
+        run = entry["runs"]["nerv"]
+        assert run["lr"] == 0.01 and 0 < run["psnr"] < 100
+        conv = run["convergence"]
+        assert conv["ratio"] is not None and conv["ratio"] == conv["last"] / conv["early"]
+        # The references' noise is a positive loss; the ratio above it is the ratio of the losses minus it.
+        assert 0 < entry["noise"] < 1
+        if conv["early"] > entry["noise"]:
+            want = max(conv["last"] - entry["noise"], 0.0) / (conv["early"] - entry["noise"])
+            assert abs(run["ratio_above_noise"] - want) < 1e-12
+    # The single-scattering data were rendered with one scattering event per path: darker than every bounce of
+    # the same views (same cameras, lights and seeds).
+    import matplotlib.pyplot as plt
+    data = tmp_path / "data"
+    every = [plt.imread(str(data / "cloud-point-ci" / "train" / ("r_%03d.png" % i))).mean() for i in range(4)]
+    single = [plt.imread(str(data / "cloud-point-single-ci" / "train" / ("r_%03d.png" % i))).mean() for i in range(4)]
+    assert all(s < e for s, e in zip(single, every)), (single, every)
+    assert os.path.getsize(tmp_path / "conv" / "cloud-point_losses.png") > 0
+    assert "| NeRV | single scattering |" in (tmp_path / "conv" / "results.md").read_text()
+    for bad, why in ((["--rates", "mlp=0.01"], "unknown method"), (["--noise-views", "0"], "at least 1"),
+                     (["--datasets", "fog-point"], "invalid choice")):
+        r = script("convergence.py", bad, tmp_path / "bad", check=False)
+        assert r.returncode != 0 and why in r.stderr, (bad, r.stderr[-2000:])
+    assert not os.path.exists(tmp_path / "bad")
