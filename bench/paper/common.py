@@ -83,15 +83,20 @@ SCALES = {
 }
 
 
-def parse_args(description, default_out):
-    """The command line every experiment takes."""
+def parser(description, default_out, default_scale="laptop"):
+    """The command line every experiment takes; an experiment adds its own arguments."""
     p = argparse.ArgumentParser(description=description)
-    p.add_argument("--scale", choices=sorted(SCALES), default="laptop", help="sizes of data, networks and training")
+    p.add_argument("--scale", choices=sorted(SCALES), default=default_scale, help="sizes of data, networks and training")
     p.add_argument("--out", default=default_out, help="results folder (datasets go to OUT/../data)")
     p.add_argument("--seed", type=int, default=0, help="seeds datasets and training")
     p.add_argument("--device", default=None, help="OpenCL device selector (default: relit's choice)")
     p.add_argument("--steps", type=int, default=None, help="training steps per run (default: the scale's)")
-    return p.parse_args()
+    return p
+
+
+def parse_args(description, default_out):
+    """The command line of an experiment with no arguments of its own."""
+    return parser(description, default_out).parse_args()
 
 
 def merge(base, override):

@@ -49,12 +49,7 @@ PAPER = {"media": {"bi": (22.5, 24.2), "nerv": (24.6, 27.4)},
 
 
 def parse_args():
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scale", choices=sorted(common.SCALES), default="laptop")
-    p.add_argument("--out", default="results/comparison")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--device", default=None)
-    p.add_argument("--steps", type=int, default=None, help="training steps per run (default: the scale's)")
+    p = common.parser(__doc__.splitlines()[0], "results/comparison")
     p.add_argument("--part", choices=["media", "solids", "all"], default="all")
     p.add_argument("--scenes", nargs="+", default=None,
                    help="only these scenes (cloud smoke thin spheres torus; default: all, or cloud and spheres at ci)")

@@ -12,7 +12,6 @@ away.
     python bench/paper/convergence.py --scale laptop128 --datasets cloud-point thin-point --methods bi \\
         --rates bi=3e-3 --out results/convergence
 """
-import argparse
 import os
 import sys
 
@@ -30,12 +29,7 @@ NOISE_SEED = 0x6e6f6973
 def parse_args():
     methods = [m for _, m in comparison.MEDIA_METHODS]
     media = [comparison.dataset_name(*p) for p in comparison.MEDIA]
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scale", choices=sorted(common.SCALES), default="laptop128")
-    p.add_argument("--out", default="results/convergence")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--device", default=None)
-    p.add_argument("--steps", type=int, default=None, help="training steps per run (default: the scale's)")
+    p = common.parser(__doc__.splitlines()[0], "results/convergence", "laptop128")
     p.add_argument("--datasets", nargs="+", default=["cloud-point"], choices=media, metavar="NAME",
                    help="media of the comparison (%s; default: cloud-point)" % " ".join(media))
     p.add_argument("--methods", nargs="+", default=methods, choices=methods, metavar="METHOD",
