@@ -14,7 +14,8 @@ namespace relit::cli {
 
 int run(const std::vector<std::string>& args) {
   CLI::App app{"relit: neural relightable participating media on OpenCL", "relit"};
-  app.set_version_flag("--version", std::string("relit ") + relit::version() + " (OpenCL C 1.2 kernels)");
+  app.set_version_flag("--version", std::string("relit ") + relit::version() + " (OpenCL C 1.2 kernels; " +
+                                        relit::build_features() + ")");
   app.require_subcommand(1);
   // Usage errors read like every other error and say where to look (set before the subcommands inherit it).
   app.failure_message([](const CLI::App*, const CLI::Error& e) {

@@ -51,9 +51,13 @@ struct Options {
 
 int run_devices(const Options& o) {
   const auto infos = list_devices();
-  nlohmann::json doc = {{"relit_version", relit::version()}, {"devices", nlohmann::json::array()}};
+  nlohmann::json doc = {{"relit_version", relit::version()},
+                        {"build_features", relit::build_features()},
+                        {"devices", nlohmann::json::array()}};
   bool all_ok = true;
-  if (!o.json) std::cout << "relit " << relit::version() << ": " << infos.size() << " OpenCL device(s)\n";
+  if (!o.json)
+    std::cout << "relit " << relit::version() << " (" << relit::build_features() << "): " << infos.size()
+              << " OpenCL device(s)\n";
   const auto selected = Device::select_all(o.selector);
   for (const auto& device : selected) {
     const DeviceInfo& i = device.info();

@@ -3,35 +3,39 @@ find_package(OpenCL 1.2 REQUIRED)                  # OpenCL::OpenCL (the ICD loa
 find_package(nlohmann_json 3.10 CONFIG REQUIRED)   # nlohmann_json::nlohmann_json
 find_package(Eigen3 3.3 CONFIG REQUIRED NO_MODULE) # Eigen3::Eigen (host math, test references)
 
-# Images (EXR, PNG, HDR) for datasets and environment maps.
-find_package(OpenImageIO CONFIG REQUIRED)          # OpenImageIO::OpenImageIO
-# Debian 12's OIIO target lists /usr/include/opencv4, which exists only with libopencv-dev: drop it.
-foreach(_p INTERFACE_INCLUDE_DIRECTORIES INTERFACE_SYSTEM_INCLUDE_DIRECTORIES)
-  get_target_property(_v OpenImageIO::OpenImageIO ${_p})
-  if(_v)
-    list(FILTER _v EXCLUDE REGEX "opencv4")
-    set_target_properties(OpenImageIO::OpenImageIO PROPERTIES ${_p} "${_v}")
-  endif()
-endforeach()
-# OpenVDB (fog volume import) ships only a Find module, in an architecture-specific folder on Debian.
-foreach(_dir "/usr/lib/${CMAKE_LIBRARY_ARCHITECTURE}/cmake/OpenVDB" "/usr/lib/cmake/OpenVDB"
-             "/usr/local/lib/cmake/OpenVDB")
-  if(EXISTS "${_dir}/FindOpenVDB.cmake")
-    list(APPEND CMAKE_MODULE_PATH "${_dir}")
-    break()
-  endif()
-endforeach()
-# FindOpenVDB sets BUILD_SHARED_LIBS (and Boost_USE_STATIC_LIBS) in the caller's scope: keep ours.
-set(_relit_shared_libs_defined FALSE)
-if(DEFINED BUILD_SHARED_LIBS)
-  set(_relit_shared_libs_defined TRUE)
-  set(_relit_shared_libs "${BUILD_SHARED_LIBS}")
+if(RELIT_WITH_OPENIMAGEIO)
+  # Images (EXR, PNG, HDR) for datasets and environment maps.
+  find_package(OpenImageIO CONFIG REQUIRED)          # OpenImageIO::OpenImageIO
+  # Debian 12's OIIO target lists /usr/include/opencv4, which exists only with libopencv-dev: drop it.
+  foreach(_p INTERFACE_INCLUDE_DIRECTORIES INTERFACE_SYSTEM_INCLUDE_DIRECTORIES)
+    get_target_property(_v OpenImageIO::OpenImageIO ${_p})
+    if(_v)
+      list(FILTER _v EXCLUDE REGEX "opencv4")
+      set_target_properties(OpenImageIO::OpenImageIO PROPERTIES ${_p} "${_v}")
+    endif()
+  endforeach()
 endif()
-find_package(OpenVDB REQUIRED)                     # OpenVDB::openvdb
-if(_relit_shared_libs_defined)
-  set(BUILD_SHARED_LIBS "${_relit_shared_libs}")
-else()
-  unset(BUILD_SHARED_LIBS)
+if(RELIT_WITH_OPENVDB)
+  # OpenVDB (fog volume import) ships only a Find module, in an architecture-specific folder on Debian.
+  foreach(_dir "/usr/lib/${CMAKE_LIBRARY_ARCHITECTURE}/cmake/OpenVDB" "/usr/lib/cmake/OpenVDB"
+               "/usr/local/lib/cmake/OpenVDB")
+    if(EXISTS "${_dir}/FindOpenVDB.cmake")
+      list(APPEND CMAKE_MODULE_PATH "${_dir}")
+      break()
+    endif()
+  endforeach()
+  # FindOpenVDB sets BUILD_SHARED_LIBS (and Boost_USE_STATIC_LIBS) in the caller's scope: keep ours.
+  set(_relit_shared_libs_defined FALSE)
+  if(DEFINED BUILD_SHARED_LIBS)
+    set(_relit_shared_libs_defined TRUE)
+    set(_relit_shared_libs "${BUILD_SHARED_LIBS}")
+  endif()
+  find_package(OpenVDB REQUIRED)                     # OpenVDB::openvdb
+  if(_relit_shared_libs_defined)
+    set(BUILD_SHARED_LIBS "${_relit_shared_libs}")
+  else()
+    unset(BUILD_SHARED_LIBS)
+  endif()
 endif()
 
 # MPI for data parallelism over several devices and machines (docs/scaling.md); relit builds without it.

@@ -9,6 +9,8 @@ namespace py = pybind11;
 PYBIND11_MODULE(_core, m) {
   m.doc() = "relit: neural relightable participating media on OpenCL (compiled core)";
   m.attr("__version__") = relit::version();
+  m.def("build_features", &relit::build_features,
+        "What this build can do beside OpenCL: 'OpenImageIO, OpenVDB, MPI', 'no ...' for what it was built without.");
   relit::python::bind_cl(m);  // first: the exception translators the other parts rely on
   relit::python::bind_nn(m);
   relit::python::bind_metrics(m);

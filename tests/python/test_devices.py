@@ -68,6 +68,10 @@ def test_python_dash_m_relit_version_and_devices():
     r = run_python(["-m", "relit", "--version"])
     assert r.returncode == 0 and re.match(r"relit \d+\.\d+\.\d+", r.stdout), r.stdout + r.stderr
     assert relit.__version__ in r.stdout
+    # The test build has images and OpenVDB (the suite reads and writes both); MPI where it was found.
+    mpi = "MPI" if relit._core.parallel.built_with_mpi() else "no MPI"
+    assert relit.build_features() == "OpenImageIO, OpenVDB, " + mpi
+    assert relit.build_features() in r.stdout
     r = run_python(["-m", "relit", "devices"])
     assert r.returncode == 0, r.stderr
     assert re.search(r"relit kernels +build OK", r.stdout), r.stdout

@@ -18,13 +18,14 @@ from ._core import (  # noqa: F401
     Program,
     ProgramCheck,
     __version__,
+    build_features,
     devices,
     set_log_level,
 )
 
 __all__ = [
     "BuildError", "ClError", "ConfigError", "Device", "DeviceError", "DeviceInfo", "Error", "InvalidArgument",
-    "IOError", "Program", "ProgramCheck", "__version__", "devices", "set_log_level",
+    "IOError", "Program", "ProgramCheck", "__version__", "build_features", "devices", "set_log_level",
 ]
 
 # Scenes, the reference path tracer and dataset generation.

@@ -3,9 +3,11 @@
 #include <relit/io/file.hpp>
 #include <relit/io/image.hpp>
 
+#if RELIT_WITH_OPENIMAGEIO
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
+#endif
 
 #include <algorithm>
 #include <atomic>
@@ -177,6 +179,14 @@ void check_claimed_sizes(const std::string& path) {
 bool is_float_format(const std::string& ext) { return ext == ".exr" || ext == ".hdr" || ext == ".pfm"; }
 bool is_8bit_format(const std::string& ext) { return ext == ".png" || ext == ".jpg" || ext == ".jpeg"; }
 
+#if !RELIT_WITH_OPENIMAGEIO
+[[noreturn]] void fail_without_image_io(const std::string& what, const std::string& path) {
+  throw IOError("cannot " + what + " '" + path +
+                "': this relit was built without OpenImageIO (RELIT_WITH_OPENIMAGEIO=OFF), so it reads and writes no "
+                "image files");
+}
+#endif
+
 }  // namespace
 
 float linear_to_srgb(float x) {
@@ -191,6 +201,9 @@ Image read_image(const std::string& path) {
   // A folder, a FIFO or a device (/dev/stdin would block) is no image.
   if (!fs::is_regular_file(path)) throw IOError("image file '" + path + "' is not a regular file");
   check_claimed_sizes(path);
+#if !RELIT_WITH_OPENIMAGEIO
+  fail_without_image_io("read image", path);
+#else
   auto in = OIIO::ImageInput::open(path);
   if (!in)
     throw IOError("cannot read image '" + path + "': " + OIIO::geterror() + " (is it a valid EXR/HDR/PNG file?)");
@@ -225,6 +238,7 @@ Image read_image(const std::string& path) {
   for (float v : image.pixels)
     if (!std::isfinite(v)) throw IOError("image '" + path + "' contains NaN or infinite values");
   return image;
+#endif
 }
 
 void write_image(const std::string& path, const Image& image) {
@@ -239,6 +253,9 @@ void write_image(const std::string& path, const Image& image) {
   if (target.has_parent_path() && !fs::is_directory(target.parent_path()))
     throw IOError("cannot write '" + path + "': folder '" + target.parent_path().string() + "' does not exist");
 
+#if !RELIT_WITH_OPENIMAGEIO
+  fail_without_image_io("write", path);
+#else
   const fs::path tmp = io::temporary_sibling(target.string());
   auto out = OIIO::ImageOutput::create(tmp.string());
   if (!out) throw IOError("cannot write '" + path + "': " + OIIO::geterror());
@@ -269,6 +286,7 @@ void write_image(const std::string& path, const Image& image) {
     throw IOError("cannot write '" + path + "': " + out->geterror());
   }
   io::replace_file(tmp.string(), target.string());
+#endif
 }
 
 std::pair<std::vector<float>, std::vector<float>> split_rgb_alpha(const Image& img) {
@@ -285,6 +303,10 @@ std::pair<std::vector<float>, std::vector<float>> split_rgb_alpha(const Image& i
 
 bool draw_text(Image& image, int x, int y, const std::string& text, int size, float value, TextAlign align) {
   if (image.empty() || text.empty() || size <= 0) return true;
+#if !RELIT_WITH_OPENIMAGEIO
+  (void)x, (void)y, (void)value, (void)align;
+  return false;  // no font renderer: the contact sheets go without their titles
+#else
   OIIO::ImageBuf buf(OIIO::ImageSpec(image.width, image.height, image.channels, OIIO::TypeDesc::FLOAT),
                      image.pixels.data());
   const std::vector<float> colour(std::size_t(image.channels), value);
@@ -294,6 +316,7 @@ bool draw_text(Image& image, int x, int y, const std::string& text, int size, fl
   // One thread: the glyphs are few, and the result must not depend on the machine.
   return OIIO::ImageBufAlgo::render_text(buf, x, y, text, size, "DejaVuSans", colour, alignx,
                                          OIIO::ImageBufAlgo::TextAlignY::Top, 0, {}, 1);
+#endif
 }
 
 }  // namespace relit

@@ -4,7 +4,9 @@
 #include <relit/method/export.hpp>
 #include <relit/method/medium.hpp>
 
+#if RELIT_WITH_OPENVDB
 #include <openvdb/openvdb.h>
+#endif
 
 #include <unistd.h>
 
@@ -164,6 +166,10 @@ VdbExportStats export_vdb(const Model& model, const std::string& path, const Vdb
     throw InvalidArgument("export threshold must be a finite number >= 0");
   medium_model(model);
   check_parent(path, "OpenVDB file");
+#if !RELIT_WITH_OPENVDB
+  throw IOError("cannot write OpenVDB file '" + path +
+                "': this relit was built without OpenVDB (RELIT_WITH_OPENVDB=OFF)");
+#else
   const MediumSamples samples = sample_medium(model, settings.resolution);
   static std::once_flag once;
   std::call_once(once, [] { openvdb::initialize(); });
@@ -226,6 +232,7 @@ VdbExportStats export_vdb(const Model& model, const std::string& path, const Vdb
   }
   io::replace_file(tmp, path);
   return stats;
+#endif
 }
 
 MitsubaExportStats export_mitsuba(const Model& model, const std::string& dir, const MitsubaExportSettings& settings) {

@@ -2,8 +2,10 @@
 #include <relit/error.hpp>
 #include <relit/scene/vdb.hpp>
 
+#if RELIT_WITH_OPENVDB
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Interpolation.h>
+#endif
 
 #include <algorithm>
 #include <cmath>
@@ -13,6 +15,26 @@
 
 namespace relit {
 
+bool VdbInfo::has(const std::string& grid) const {
+  for (const auto& g : grids)
+    if (g.rfind(grid + " (", 0) == 0) return true;
+  return false;
+}
+
+#if !RELIT_WITH_OPENVDB
+namespace {
+[[noreturn]] void fail_without_openvdb(const std::string& path) {
+  if (!std::filesystem::exists(path)) throw IOError("OpenVDB file '" + path + "' does not exist");
+  throw IOError("cannot read OpenVDB file '" + path +
+                "': this relit was built without OpenVDB (RELIT_WITH_OPENVDB=OFF)");
+}
+}  // namespace
+
+VdbInfo read_vdb_info(const std::string& path) { fail_without_openvdb(path); }
+Grid load_vdb_world(const std::string& path, const std::string&, int) { fail_without_openvdb(path); }
+Grid load_vdb_density(const std::string& path, const std::string&, int, float) { fail_without_openvdb(path); }
+
+#else
 namespace {
 
 struct VdbFile {
@@ -57,12 +79,6 @@ openvdb::FloatGrid::Ptr pick_float_grid(const VdbFile& f, const std::string& gri
 }
 
 }  // namespace
-
-bool VdbInfo::has(const std::string& grid) const {
-  for (const auto& g : grids)
-    if (g.rfind(grid + " (", 0) == 0) return true;
-  return false;
-}
 
 VdbInfo read_vdb_info(const std::string& path) {
   const VdbFile f = read_vdb_file(path);
@@ -156,5 +172,7 @@ Grid load_vdb_density(const std::string& path, const std::string& grid_name, int
   for (auto& v : out.values) v /= vmax;
   return out;
 }
+
+#endif  // RELIT_WITH_OPENVDB
 
 }  // namespace relit
