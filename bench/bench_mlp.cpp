@@ -4,6 +4,7 @@
 //
 //   bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants fused,eigen,clblast]
 //   bench_mlp --blockings "T,R,B,V,RJ,RK,ROWS[,F[,G]];..." [--variants w64,w256] [--reps N]   (tuning: fused only)
+//   bench_mlp --workgroups "S,N,RJ,RS,KT,DWT,DWR,DWS,DWC;..." [--batch N] ...    (tuning: the work-group kernels)
 //
 // FLOPs: 2 per multiply-add; forward = 2 * sum(in * out) per sample; training step = 3 x forward
 // (forward + dL/dinput + dL/dweights). Timings are medians over --reps runs, each ended by clFinish.
@@ -28,6 +29,7 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <optional>
 #include <iostream>
 #include <random>
 #include <string>
@@ -43,7 +45,9 @@ namespace {
 struct Options {
   bool smoke = false;
   std::string json, device, variants = "fused,eigen,clblast";
-  std::string blockings;  // --blockings: tuning mode
+  std::string blockings;    // --blockings: tuning mode (SIMD kernels)
+  std::string workgroups;   // --workgroups: tuning mode (work-group kernels)
+  std::uint32_t batch = 0;  // --batch: samples per batch (0: 76800, relit's training batch of 1200 rays x 64)
   int reps = 7;
   bool wants(const std::string& v) const { return ("," + variants + ",").find("," + v + ",") != std::string::npos; }
 };
@@ -432,36 +436,71 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
 }
 
 // ------------------------------------------------------------------------------------------------------
-// Tuning mode (--blockings "T,R,B,V,RJ,RK,ROWS[,F[,G]];..."): the fused MLP with each register blocking (see
-// FullyFusedMLP::Blocking), verified, then timed round-robin (one forward and one training step of every
-// blocking per round) so that a loaded machine slows them all alike; medians over --reps rounds.
+// Tuning modes (--blockings "T,R,B,V,RJ,RK,ROWS[,F[,G]];..." for the SIMD kernels, --workgroups
+// "S,N,RJ,RS,KT,DWT,DWR,DWS,DWC;..." for the work-group kernels): the fused MLP with each setting (see
+// FullyFusedMLP::Blocking and ::WorkGroupParams), verified, then timed round-robin (one forward and one training
+// step of every setting per round) so that a loaded machine slows them all alike; medians over --reps rounds.
 // ------------------------------------------------------------------------------------------------------
-std::vector<FullyFusedMLP::Blocking> parse_blockings(const std::string& list) {
-  std::vector<FullyFusedMLP::Blocking> out;
+struct KernelSetting {
+  std::optional<FullyFusedMLP::Blocking> blocking;
+  std::optional<FullyFusedMLP::WorkGroupParams> workgroup;
+  std::string str() const { return blocking ? blocking->str() : workgroup->str(); }
+  void apply(FullyFusedMLP& net) const {
+    if (blocking)
+      net.set_blocking(blocking);
+    else
+      net.set_workgroup(workgroup);
+  }
+};
+
+// The ';'-separated lists of at least `min` and at most `max` comma-separated unsigned numbers.
+std::vector<std::vector<unsigned>> parse_lists(const std::string& list, int min, int max, const std::string& what) {
+  std::vector<std::vector<unsigned>> out;
   std::size_t pos = 0;
   while (pos <= list.size()) {
     const std::size_t end = std::min(list.find(';', pos), list.size());
     const std::string item = list.substr(pos, end - pos);
     pos = end + 1;
     if (item.empty()) continue;
-    unsigned v[9] = {0, 0, 0, 0, 0, 0, 0, 0, 8};
-    const int n = std::sscanf(item.c_str(), "%u,%u,%u,%u,%u,%u,%u,%u,%u", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5],
-                              &v[6], &v[7], &v[8]);
-    if (n < 7) throw InvalidArgument("--blockings: '" + item + "' is not T,R,B,V,RJ,RK,ROWS[,F[,G]]");
-    out.push_back({v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]});
+    std::vector<unsigned> v;
+    std::size_t at = 0;
+    while (at <= item.size()) {
+      const std::size_t comma = std::min(item.find(',', at), item.size());
+      const std::string field = item.substr(at, comma - at);
+      at = comma + 1;
+      if (field.empty() || field.find_first_not_of("0123456789") != std::string::npos)
+        throw InvalidArgument(what + ": '" + item + "' holds '" + field + "', not an unsigned number");
+      v.push_back(static_cast<unsigned>(std::stoul(field)));
+    }
+    if (int(v.size()) < min || int(v.size()) > max)
+      throw InvalidArgument(what + ": '" + item + "' has " + std::to_string(v.size()) + " numbers, not " +
+                            std::to_string(min) + (min == max ? "" : " to " + std::to_string(max)));
+    out.push_back(v);
   }
   return out;
 }
 
+std::vector<KernelSetting> parse_settings(const Options& o) {
+  std::vector<KernelSetting> out;
+  for (auto v : parse_lists(o.blockings, 7, 9, "--blockings (T,R,B,V,RJ,RK,ROWS[,F[,G]])")) {
+    if (v.size() < 8) v.push_back(0);  // F
+    if (v.size() < 9) v.push_back(8);  // G
+    out.push_back({FullyFusedMLP::Blocking{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]}, {}});
+  }
+  for (const auto& v : parse_lists(o.workgroups, 9, 9, "--workgroups (S,N,RJ,RS,KT,DWT,DWR,DWS,DWC)"))
+    out.push_back({{}, FullyFusedMLP::WorkGroupParams{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]}});
+  return out;
+}
+
 void tune_net(const Device& device, const NetSpec& spec, const Options& o, double peak) {
-  const auto blockings = parse_blockings(o.blockings);
+  const auto settings = parse_settings(o);
   std::printf("\n%s: %u -> %u x %u -> %u, batch %u\n", spec.name.c_str(), spec.n_in, spec.n_hidden, spec.width,
               spec.n_out, spec.batch);
   std::vector<std::unique_ptr<Network>> nets;
-  for (const auto& b : blockings) {
+  for (const auto& setting : settings) {
     nets.push_back(
         create_network({{"n_neurons", spec.width}, {"n_hidden_layers", spec.n_hidden}}, spec.n_in, spec.n_out));
-    dynamic_cast<FullyFusedMLP&>(*nets.back()).set_blocking(b);
+    setting.apply(dynamic_cast<FullyFusedMLP&>(*nets.back()));
   }
   const auto& net0 = dynamic_cast<const FullyFusedMLP&>(*nets[0]);
   const BenchData data = bench_data(net0, spec, 1024);
@@ -478,7 +517,7 @@ void tune_net(const Device& device, const NetSpec& spec, const Options& o, doubl
     net.forward(device, {&pbuf, 0}, x, y, *ws.back());
     net.backward(device, {&pbuf, 0}, x, y, dy, {&gbuf, 0}, false, &dx, *ws.back());
     device.finish();
-    const std::string b = blockings[i].str();
+    const std::string b = net.kernel_choice(device).str();
     verify(b + " forward", reference::worst_ratio(y.download_row_major(), want_y, 1e-4));
     verify(b + " dL/dparams", reference::worst_ratio(gbuf.read(), want_dp, 1e-3));
     verify(b + " dL/dinput", reference::worst_ratio(dx.download_row_major(), want_dx, 1e-3));
@@ -501,14 +540,16 @@ void tune_net(const Device& device, const NetSpec& spec, const Options& o, doubl
       tt[i].push_back(seconds_since(t0));
     }
   const double ff = net0.flops_per_sample() * n;
-  std::printf("%-28s %10s %8s %10s %8s\n", "blocking", "fwd ms", "fwd %pk", "train ms", "trn %pk");
+  std::printf("%-72s %10s %8s %10s %8s\n", "kernels (as lowered to fit the device)", "fwd ms", "fwd %pk", "train ms",
+              "trn %pk");
   for (std::size_t i = 0; i < nets.size(); ++i) {
     auto med = [](std::vector<double> v) {
       std::sort(v.begin(), v.end());
       return v[v.size() / 2];
     };
     const double f = med(tf[i]), t = med(tt[i]);
-    std::printf("%-28s %10.2f %7.1f%% %10.2f %7.1f%%\n", blockings[i].str().c_str(), f * 1e3,
+    const auto& net = dynamic_cast<const FullyFusedMLP&>(*nets[i]);
+    std::printf("%-72s %10.2f %7.1f%% %10.2f %7.1f%%\n", net.kernel_choice(device).str().c_str(), f * 1e3,
                 100 * ff / f * 1e-9 / peak, t * 1e3, 100 * 3 * ff / t * 1e-9 / peak);
   }
 }
@@ -531,11 +572,17 @@ int main(int argc, char** argv) {
       o.reps = std::max(1, std::atoi(argv[++i]));
     else if (a == "--blockings" && i + 1 < argc)
       o.blockings = argv[++i];
+    else if (a == "--workgroups" && i + 1 < argc)
+      o.workgroups = argv[++i];
+    else if (a == "--batch" && i + 1 < argc)
+      o.batch = static_cast<std::uint32_t>(std::max(16L, std::atol(argv[++i])));
     else {
-      std::fprintf(stderr,
-                   "usage: bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants "
-                   "fused,eigen,clblast] "
-                   "[--blockings \"T,R,B,V,RJ,RK,ROWS[,F[,G]];...\"]\n");
+      std::fprintf(
+          stderr,
+          "usage: bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants "
+          "fused,eigen,clblast] "
+          "[--blockings \"T,R,B,V,RJ,RK,ROWS[,F[,G]];...\"] [--workgroups \"S,N,RJ,RS,KT,DWT,DWR,DWS,DWC;...\"] "
+          "[--batch N]\n");
       return 2;
     }
   }
@@ -556,10 +603,10 @@ int main(int argc, char** argv) {
       if (p.gflops > peak) peak = p.gflops, peak_name = p.variant;
     std::printf("  %% of peak below: of %s (%.1f GFLOP/s), the faster calibration\n", peak_name.c_str(), peak);
 
-    const std::uint32_t batch = o.smoke ? 1000 : 76800;
+    const std::uint32_t batch = o.batch ? o.batch : o.smoke ? 1000 : 76800;
     std::vector<NetSpec> specs = {{"small (3x64)", 32, 64, 3, 16, batch},
                                   {"paper (8x256)", 64, 256, 8, 16, o.smoke ? 200 : batch}};
-    if (!o.blockings.empty()) {
+    if (!o.blockings.empty() || !o.workgroups.empty()) {
       for (const auto& s : specs)
         if (o.variants.find('w') == std::string::npos || o.wants(s.width >= 256 ? "w256" : "w64"))
           tune_net(device, s, o, peak);

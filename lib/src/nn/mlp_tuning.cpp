@@ -47,27 +47,30 @@ constexpr Blocking kAvx2{};
 constexpr Blocking kAvx512{4, 6, 6, 16, 8, 3, 24, 16384, 16};
 
 // Work-group parameters: samples, items, rows x cols register block, k_tile, dW tile / block / samples, dW
-// chunk. None of the GPU rows is tuned: no GPU was available to measure on; they are starting points, based on:
-//  - NVIDIA: tiny-cuda-nn's fully fused MLP runs 128 samples per block (16 x N_ITERS = 8) with 32 x WIDTH/16
-//    threads (128 at width 64), and its weight gradients as split-K GEMMs over chunks of min(4096, batch)
-//    samples. OpenCL on NVIDIA gets 48 KiB of local memory per group, so from width 128 the tile is lowered
-//    (FullyFusedMLP fits it to the device). 4 x 8 register blocks: 2 blocks per work-item at width 64.
-//  - AMD: the same tile, 256 work-items (four 64-wide wavefronts on GCN/CDNA, eight 32-wide ones on RDNA);
-//    64 KiB of LDS per group.
-//  - Intel: 64 samples and 128 work-items (EUs run SIMD8-32 sub-groups; 64 KiB of SLM per sub-slice), 4 x 4
-//    blocks, 32 x 32 dW tiles.
-//  - any other device: small groups (64 work-items) that every OpenCL device accepts.
-constexpr WorkGroupParams kWgNvidia{128, 128, 4, 8, 16, 64, 4, 16, 4096};
-constexpr WorkGroupParams kWgAmd{128, 256, 4, 8, 16, 64, 4, 16, 4096};
-constexpr WorkGroupParams kWgIntel{64, 128, 4, 4, 16, 32, 4, 16, 2048};
-constexpr WorkGroupParams kWgOther{64, 64, 4, 4, 16, 32, 4, 16, 2048};
+// chunk.
+//  - NVIDIA: measured on an H200 (OpenCL 3.0 CUDA, driver 580; bench_mlp --workgroups, 12 settings at the
+//    training batch of 76800 samples, docs/benchmarks.md). 256 work-items in 4 x 4 blocks were the fastest at
+//    width 256 (forward 4.9 ms, training step 19.7 ms against 5.7 and 22.9 for the first guess below) and close at
+//    width 64. The dW chunk matters most: tiny-cuda-nn's split-K chunks of 4096 samples leave 19 work-groups per
+//    64 x 64 layer at this batch, for 132 compute units; chunks of 512 cut the width-64 training step from 3.0 ms
+//    to 1.0. OpenCL on NVIDIA gets 48 KiB of local memory per group, so from width 128 the tile is lowered
+//    (FullyFusedMLP fits it to the device).
+//  - AMD, Intel and other devices: not measured (no such GPU was available). Starting points: AMD the NVIDIA
+//    tile with 256 work-items (four 64-wide wavefronts on GCN/CDNA, eight 32-wide ones on RDNA; 64 KiB of LDS per
+//    group); Intel 64 samples and 128 work-items (EUs run SIMD8-32 sub-groups; 64 KiB of SLM per sub-slice), 4 x 4
+//    blocks, 32 x 32 dW tiles; any other device small groups (64 work-items) that every OpenCL device accepts.
+//    All with dW chunks of 512 samples, for the reason measured on NVIDIA.
+constexpr WorkGroupParams kWgNvidia{128, 256, 4, 4, 16, 64, 4, 16, 512};
+constexpr WorkGroupParams kWgAmd{128, 256, 4, 8, 16, 64, 4, 16, 512};
+constexpr WorkGroupParams kWgIntel{64, 128, 4, 4, 16, 32, 4, 16, 512};
+constexpr WorkGroupParams kWgOther{64, 64, 4, 4, 16, 32, 4, 16, 512};
 
 const Row kTable[] = {
     // CPUs: the SIMD kernels, measured (PoCL on 2-core AMD EPYC machines with AVX2 and with AVX-512, Zen 5;
     // docs/networks.md). Their work-group parameters are only used when the work-group variant is forced.
     {"AVX-512 CPU", "cpu", "", 16, Variant::Simd, kAvx512, kWgOther, true},
     {"CPU", "cpu", "", 0, Variant::Simd, kAvx2, kWgOther, true},
-    {"NVIDIA GPU", "gpu", "nvidia", 0, Variant::WorkGroup, kAvx2, kWgNvidia, false},
+    {"NVIDIA GPU", "gpu", "nvidia", 0, Variant::WorkGroup, kAvx2, kWgNvidia, true},
     {"AMD GPU", "gpu", "advanced micro devices|amd", 0, Variant::WorkGroup, kAvx2, kWgAmd, false},
     {"Intel GPU", "gpu", "intel", 0, Variant::WorkGroup, kAvx2, kWgIntel, false},
     {"other device", "", "", 0, Variant::WorkGroup, kAvx2, kWgOther, false},
