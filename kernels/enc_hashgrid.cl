@@ -205,27 +205,29 @@ __kernel void hashgrid_backward_params(const uint n_tiles, const uint n, __globa
     load_inputs(in, t, in_cols, in_col, x);
     grid_cell(x, level, cell, frac);
     const int16 valid = (int16)((int)t * RELIT_TILE) + lane < (int16)((int)n);
-    float gs[FEATS][RELIT_TILE];
 #pragma unroll
-    for (int f = 0; f < FEATS; ++f) {
+    for (int f = 0; f < FEATS; ++f)
       g[f] = select((float16)0.0f, tile_load(d_out, t, out_cols, out_col + level * FEATS + f), valid);
-      vstore16(g[f], 0, gs[f]);
-    }
 #pragma unroll
     for (int c = 0; c < N_CORNERS; ++c) {
       uint ids[RELIT_TILE];
-      float ws[RELIT_TILE];
+      float wg[FEATS][RELIT_TILE];
       vstore16(grid_index(cell, level, c), 0, ids);
-      vstore16(grid_weight(frac, c), 0, ws);
+      const float16 w = grid_weight(frac, c);
+#pragma unroll
+      for (int f = 0; f < FEATS; ++f) vstore16(w * g[f], 0, wg[f]);
 #pragma unroll
       for (int s = 0; s < RELIT_TILE; ++s) {
         const uint id = ids[s];
         if (N_RANGES > 1 && (id < lo || id >= hi)) continue;
         __global float* entry = table + (size_t)id * FEATS;
-        // An explicit fma: whether a compiler contracts `entry += w * g` must not depend on N_RANGES (NVIDIA's
-        // contracted it in one configuration and not in the other, one ulp apart).
 #pragma unroll
-        for (int f = 0; f < FEATS; ++f) entry[f] = fma(ws[s], gs[f][s], entry[f]);
+        for (int f = 0; f < FEATS; ++f) {
+          // Not contracted with the product above into an fma: NVIDIA's compiler did so in one N_RANGES and not
+          // in another (one ulp apart), and any number of ranges must give the same bits.
+#pragma OPENCL FP_CONTRACT OFF
+          entry[f] += wg[f][s];
+        }
       }
     }
   }
