@@ -69,14 +69,16 @@ void bind_metrics(py::module_& root) {
         o["rel_mse"] = c.object.rel_mse;
         o["clipped"] = c.object.clipped;
         o["flip"] = c.object.flip;
+        o["prediction_only"] = c.object.prediction_only;
         d["object"] = o;
         return d;
       },
       py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none(), py::arg("mask") = py::none(),
       "Linear float images (H, W[, C]) → {'mse', 'psnr', 'ssim', 'flip', 'object': {...}}: PSNR/SSIM of their "
       "clamped sRGB encodings and the mean HDR-FLIP over the image, and over the object's pixels (mask: (H, W), "
-      "nonzero on the object; see object_mask) with the linear relative MSE and the share of clipped reference "
-      "pixels. NaN where there is no object pixel.");
+      "nonzero on the object; see object_mask) with the linear relative MSE, the share of clipped reference "
+      "pixels and 'prediction_only', the share of the object's pixels where the mask is 2 (only the prediction's "
+      "alpha: floaters or haze; 0 for a mask of 0 and 1). NaN where there is no object pixel.");
   m.def(
       "flip",
       [](const Image& p, const Image& r, const std::string& range, double ppd, const py::object& start,

@@ -91,14 +91,16 @@ TEST(Metrics, ObjectMetricsMatchDoubleReferenceOnRandomImages) {
   const auto mask = metrics::object_mask(ref_alpha, pred_alpha, w * h);
   const auto m = metrics::compare(d, a, b, w, h, ch, &mask);
   double se = 0, rel = 0, ssim = 0;
-  std::size_t pixels = 0, clipped = 0, interior = 0;
+  std::size_t pixels = 0, clipped = 0, interior = 0, prediction_only = 0;
   const auto ssim_map = reference_ssim_map(a, b, w, h, ch);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       const int p = y * w + x;
-      ASSERT_EQ(mask[p], ref_alpha[p] > 0.01f || pred_alpha[p] > 0.01f);
+      // 1 where the reference's alpha marks the object, 2 where only the prediction's does, 0 elsewhere.
+      ASSERT_EQ(mask[p], ref_alpha[p] > 0.01f ? 1 : pred_alpha[p] > 0.01f ? 2 : 0);
       if (!mask[p]) continue;
       ++pixels;
+      prediction_only += mask[p] == 2;
       bool clips = false;
       for (int c = 0; c < ch; ++c) {
         const double pa = a[p * ch + c], pb = b[p * ch + c];
@@ -122,6 +124,8 @@ TEST(Metrics, ObjectMetricsMatchDoubleReferenceOnRandomImages) {
   EXPECT_NEAR(m.object.ssim, ssim / (interior * ch), 1e-5);
   EXPECT_NEAR(m.object.rel_mse, rel / (pixels * ch), 1e-5 * rel / (pixels * ch));
   EXPECT_DOUBLE_EQ(m.object.clipped, double(clipped) / pixels);
+  ASSERT_GT(prediction_only, 10u);
+  EXPECT_DOUBLE_EQ(m.object.prediction_only, double(prediction_only) / pixels);
   // The whole-image numbers do not depend on the mask.
   const auto whole = metrics::compare(d, a, b, w, h, ch);
   EXPECT_EQ(whole.psnr, m.psnr);
@@ -148,6 +152,16 @@ TEST(Metrics, ObjectPsnrIsTheObjectsOwn) {
   EXPECT_NEAR(m.psnr, 20.0 + 10 * std::log10(1024.0 / 64.0), 1e-3);  // 32.04 dB: the background is exact
   EXPECT_EQ(m.object.pixels, 64u);
   EXPECT_DOUBLE_EQ(m.object.clipped, 0.0);
+  EXPECT_DOUBLE_EQ(m.object.prediction_only, 0.0);
+  // A haze the prediction adds around the object (alpha 0.02, no radiance): the mask grows by the prediction-only
+  // pixels, which the object metrics then average over (the error is the same, spread over more pixels), and
+  // prediction_only says how much of the mask they are.
+  std::vector<float> haze(w * h, 0.02f);
+  const auto hazy = metrics::object_mask(alpha, haze, w * h);
+  const auto diluted = metrics::compare(d, pred, ref, w, h, 1, &hazy);
+  EXPECT_EQ(diluted.object.pixels, 1024u);
+  EXPECT_DOUBLE_EQ(diluted.object.prediction_only, 960.0 / 1024.0);
+  EXPECT_NEAR(diluted.object.psnr, m.psnr, 1e-3);
   // An empty mask: no object metrics; a mask of the wrong size or alphas of the wrong size: errors.
   const std::vector<std::uint8_t> none(w * h, 0), short_mask(10, 1);
   EXPECT_TRUE(std::isnan(metrics::compare(d, pred, ref, w, h, 1, &none).object.rel_mse));

@@ -101,6 +101,23 @@ TEST(Report, SummaryLinesEndWithTheParsableMeans) {
             "test: PSNR 25.25 dB  SSIM 0.8000  FLIP 0.1500 (2 views)\n"
             "PSNR 25.2500  (mean over the 2 test views)\n"
             "SSIM 0.8000  (mean over the 2 test views)\n");
+  // An object whose mask is mostly the prediction's (floaters or haze) is named on the split's line.
+  std::vector<ViewResult> hazy = {views[0]};
+  auto& o = hazy[0].metrics.object;
+  o.pixels = 10;
+  o.fraction = 0.5;
+  o.psnr = 20;
+  o.ssim = 0.5;
+  o.rel_mse = 0.1;
+  o.clipped = 0;
+  o.prediction_only = 0.6;
+  EXPECT_EQ(report::format_summary_lines(hazy),
+            "test: PSNR 30.00 dB  SSIM 0.9000  | object: PSNR 20.00 dB  SSIM 0.5000  relMSE 1.000e-01  clipped 0.0 %  "
+            "prediction only 60.0 % (floaters or haze: the object metrics average over it) (1 view)\n"
+            "PSNR 30.0000  (mean over the 1 test view)\n"
+            "SSIM 0.9000  (mean over the 1 test view)\n");
+  o.prediction_only = 0.1;  // below the warning: not named
+  EXPECT_EQ(report::format_summary_lines(hazy).find("prediction only"), std::string::npos);
   with_flip[1].metrics.flip = 1.5;  // outside [0, 1]
   EXPECT_THROW(report::validate(with_flip), InvalidArgument);
   EXPECT_THROW(report::format_summary_lines({}), InvalidArgument);
@@ -350,6 +367,7 @@ TEST(Report, MetricsJsonAndMarkdownParseBack) {
   obj.rel_mse = 0.125;
   obj.clipped = 0.25;
   obj.flip = 0.15;
+  obj.prediction_only = 0.375;
   // FLIP: a and b have it, c not (metrics given without it): the means are over a and b.
   views[0].metrics.flip = 0.1;
   views[1].metrics.flip = 0.3;
@@ -384,6 +402,8 @@ TEST(Report, MetricsJsonAndMarkdownParseBack) {
   EXPECT_DOUBLE_EQ(j["splits"]["test"]["object"]["psnr"].get<double>(), 22.0);
   EXPECT_DOUBLE_EQ(j["mean"]["object"]["rel_mse"].get<double>(), 0.125);
   EXPECT_DOUBLE_EQ(j["mean"]["object"]["clipped"].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(j["mean"]["object"]["prediction_only"].get<double>(), 0.375);
+  EXPECT_DOUBLE_EQ(j["views"][0]["object"]["prediction_only"].get<double>(), 0.375);
   EXPECT_DOUBLE_EQ(j["mean"]["flip"].get<double>(), 0.2);
   EXPECT_DOUBLE_EQ(j["splits"]["test"]["flip"].get<double>(), 0.2);
   EXPECT_TRUE(j["splits"]["test_light"]["flip"].is_null());
@@ -400,7 +420,9 @@ TEST(Report, MetricsJsonAndMarkdownParseBack) {
   EXPECT_TRUE(contains(md, "- method: ours\n- steps: 3000\n")) << md;
   EXPECT_TRUE(contains(md, "| split | views | PSNR [dB] | SSIM | MSE | FLIP | object PSNR [dB] | object SSIM |")) << md;
   EXPECT_TRUE(contains(
-      md, "| test | 2 | 25.00 | 0.8000 | 5.500e-03 | 0.2000 | 22.00 | 0.6000 | 1.250e-01 | 0.1500 | 25.0 % | 50.0 % |"))
+      md,
+      "| test | 2 | 25.00 | 0.8000 | 5.500e-03 | 0.2000 | 22.00 | 0.6000 | 1.250e-01 | 0.1500 | 25.0 % | 50.0 % | "
+      "37.5 % |"))
       << md;
   EXPECT_TRUE(contains(md, "| test_light | 1 | 25.00 | 0.8123 | 3.162e-03 | – |")) << md;
   EXPECT_TRUE(contains(md, "| **mean** | 3 | 25.00 | 0.8041 |")) << md;

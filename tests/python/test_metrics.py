@@ -46,6 +46,13 @@ def test_object_metrics_match_numpy(device):
     p64, r64 = pred[mask].astype(np.float64), ref[mask].astype(np.float64)
     assert m["object"]["rel_mse"] == pytest.approx(np.mean((p64 - r64) ** 2 / (r64 ** 2 + 0.01)), rel=1e-5)
     assert m["object"]["clipped"] == pytest.approx(np.mean((ref[mask] > 1).any(axis=1)))
+    # A boolean mask does not say which pixels only the prediction marks; a mask of 1 (the reference's alpha) and
+    # 2 (only the prediction's), as relit's reports build it, does.
+    assert m["object"]["prediction_only"] == 0
+    coded = np.where(ref_alpha > 0.01, 1, np.where(pred_alpha > 0.01, 2, 0)).astype(np.uint8)
+    m2 = relit.metrics.compare(pred, ref, device=device, mask=coded)
+    assert m2["object"]["prediction_only"] == pytest.approx(np.mean(coded[mask] == 2)) and 0 < np.mean(coded[mask] == 2)
+    assert m2["object"]["psnr"] == m["object"]["psnr"]
     # The whole image is unchanged by the mask; without one there are no object metrics.
     plain = relit.metrics.compare(pred, ref, device=device)
     assert plain["psnr"] == m["psnr"] and np.isnan(plain["object"]["psnr"])

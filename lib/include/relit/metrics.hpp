@@ -28,6 +28,10 @@ namespace relit::metrics {
 
 /// Alpha above this marks an object pixel.
 constexpr float kObjectAlpha = 0.01f;
+/// object_mask()'s values: nonzero is the object; kMaskPredictionOnly marks pixels that only the prediction's
+/// alpha puts there (floaters, or a haze in empty space), kMaskReference those of the reference's alpha.
+constexpr std::uint8_t kMaskReference = 1;
+constexpr std::uint8_t kMaskPredictionOnly = 2;
 /// The relative MSE's (a - b)^2 / (b^2 + eps) regulariser (b: the reference), as in denoising papers: it keeps
 /// near-black pixels from dominating.
 constexpr double kRelMseEpsilon = 0.01;
@@ -43,6 +47,10 @@ struct ObjectComparison {
   double rel_mse = kNone;    ///< mean over the object and channels of (a - b)^2 / (b^2 + kRelMseEpsilon), linear
   double clipped = kNone;    ///< share of the object's pixels whose reference has a channel above 1
   double flip = kNone;       ///< mean HDR-FLIP over the object's pixels (the exposures are the whole image's)
+  /// Share of the object's pixels that only the prediction's alpha marks (mask value kMaskPredictionOnly):
+  /// floaters or a haze. Well above 0, the object metrics are averaged over that much empty space too. 0 when the
+  /// mask does not say (a mask of 0 and 1 only).
+  double prediction_only = kNone;
 };
 
 struct ImageComparison {
@@ -54,8 +62,9 @@ struct ImageComparison {
   ObjectComparison object;  ///< over the mask given to compare(); pixels 0 and NaN metrics without one
 };
 
-/// The object's pixels (1) of an image of `pixels` pixels: where the reference's alpha or the prediction's
-/// exceeds kObjectAlpha. Either alpha may be empty (not known); both empty gives an empty mask (all 0).
+/// The object's pixels (nonzero) of an image of `pixels` pixels: where the reference's alpha or the prediction's
+/// exceeds kObjectAlpha; kMaskReference where the reference's does, kMaskPredictionOnly where only the
+/// prediction's does. Either alpha may be empty (not known); both empty gives an empty mask (all 0).
 std::vector<std::uint8_t> object_mask(const std::vector<float>& reference_alpha,
                                       const std::vector<float>& prediction_alpha, std::size_t pixels);
 

@@ -47,8 +47,9 @@ struct SplitSummary {
   double psnr = 0, ssim = 0, mse = 0;  ///< PSNR: the mean of the per-view PSNRs in dB
   double flip = 0;                     ///< mean HDR-FLIP over the views that have it (NaN when none has)
   /// The object metrics' means over the views that have them (an object mask with pixels), NaN when none has:
-  /// ObjectComparison's psnr, ssim, rel_mse, clipped, fraction and flip.
-  double object_psnr = 0, object_ssim = 0, object_rel_mse = 0, object_clipped = 0, object_fraction = 0, object_flip = 0;
+  /// ObjectComparison's psnr, ssim, rel_mse, clipped, fraction, flip and prediction_only.
+  double object_psnr = 0, object_ssim = 0, object_rel_mse = 0, object_clipped = 0, object_fraction = 0, object_flip = 0,
+         object_prediction_only = 0;
 };
 
 /// Checks what the report relies on and throws InvalidArgument naming the view (split/name, index) and the

@@ -37,9 +37,10 @@ std::vector<std::uint8_t> object_mask(const std::vector<float>& reference_alpha,
       throw InvalidArgument("metrics::object_mask: an alpha of " + std::to_string(alpha->size()) +
                             " values for an image of " + std::to_string(pixels) + " pixels");
   std::vector<std::uint8_t> mask(pixels, 0);
-  for (const auto* alpha : {&reference_alpha, &prediction_alpha})
-    for (std::size_t i = 0; i < alpha->size(); ++i)
-      if ((*alpha)[i] > kObjectAlpha) mask[i] = 1;
+  for (std::size_t i = 0; i < prediction_alpha.size(); ++i)
+    if (prediction_alpha[i] > kObjectAlpha) mask[i] = kMaskPredictionOnly;
+  for (std::size_t i = 0; i < reference_alpha.size(); ++i)
+    if (reference_alpha[i] > kObjectAlpha) mask[i] = kMaskReference;
   return mask;
 }
 
@@ -99,9 +100,14 @@ ImageComparison compare(const Device& device, const std::vector<float>& predicti
     o.clipped = obj[2] / double(o.pixels);
     if (ss[2] > 0) o.ssim = ss[1] / (ss[2] * channels);
     double flip_sum = 0;
+    std::uint64_t prediction_only = 0;
     for (std::size_t p = 0; p < pixels; ++p)
-      if ((*mask)[p]) flip_sum += f.error[p];
+      if ((*mask)[p]) {
+        flip_sum += f.error[p];
+        prediction_only += (*mask)[p] == kMaskPredictionOnly;
+      }
     o.flip = flip_sum / double(o.pixels);
+    o.prediction_only = double(prediction_only) / double(o.pixels);
   }
   return result;
 }

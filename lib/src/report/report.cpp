@@ -21,6 +21,9 @@ namespace {
 
 using OrderedJson = nlohmann::ordered_json;
 
+// format_summary_lines() names the share of the object's pixels that only the prediction marks above this.
+constexpr double kPredictionOnlyWarning = 0.25;
+
 // 'inferno' (van der Walt & Smith, CC0; the matplotlib colour map) at entries 0, 8, 16, ..., 248 and 255 of
 // its 256, in sRGB, interpolated linearly between (within a few thousandths of the full table).
 constexpr int kInfernoStep = 8;
@@ -121,14 +124,20 @@ OrderedJson means(const SplitSummary& s) {
             {"rel_mse", number(s.object_rel_mse)},
             {"flip", number(s.object_flip)},
             {"clipped", number(s.object_clipped)},
-            {"fraction", number(s.object_fraction)}}}};
+            {"fraction", number(s.object_fraction)},
+            {"prediction_only", number(s.object_prediction_only)}}}};
 }
 
 OrderedJson view_object(const metrics::ImageComparison& m) {
-  return {{"pixels", m.object.pixels},     {"fraction", number(m.object.fraction)},
-          {"psnr", number(m.object.psnr)}, {"ssim", number(m.object.ssim)},
-          {"mse", number(m.object.mse)},   {"rel_mse", number(m.object.rel_mse)},
-          {"flip", number(m.object.flip)}, {"clipped", number(m.object.clipped)}};
+  return {{"pixels", m.object.pixels},
+          {"fraction", number(m.object.fraction)},
+          {"psnr", number(m.object.psnr)},
+          {"ssim", number(m.object.ssim)},
+          {"mse", number(m.object.mse)},
+          {"rel_mse", number(m.object.rel_mse)},
+          {"flip", number(m.object.flip)},
+          {"clipped", number(m.object.clipped)},
+          {"prediction_only", number(m.object.prediction_only)}};
 }
 
 // A Markdown table cell: '|' would end the cell, a line break the table.
@@ -169,16 +178,17 @@ std::vector<std::string> sheet_view_names(const std::vector<const ViewResult*>& 
 std::string sheet_file(const std::string& split) { return "contact_sheet_" + split + ".png"; }
 
 // The metrics a view may lack (NaN): FLIP (not computed) and the object's (no object pixels), in SplitSummary's
-// order of flip, object_psnr ... object_flip.
-constexpr std::size_t kOptional = 7;
+// order of flip, object_psnr ... object_prediction_only.
+constexpr std::size_t kOptional = 8;
 std::array<double, kOptional> optional_values(const ViewResult& v) {
   const auto& o = v.metrics.object;
-  return {v.metrics.flip, o.psnr, o.ssim, o.rel_mse, o.clipped, o.pixels ? o.fraction : std::nan(""), o.flip};
+  return {v.metrics.flip, o.psnr,           o.ssim, o.rel_mse, o.clipped, o.pixels ? o.fraction : std::nan(""),
+          o.flip,         o.prediction_only};
 }
 
 std::array<double*, kOptional> optional_fields(SplitSummary& s) {
   return {&s.flip,           &s.object_psnr,     &s.object_ssim, &s.object_rel_mse,
-          &s.object_clipped, &s.object_fraction, &s.object_flip};
+          &s.object_clipped, &s.object_fraction, &s.object_flip, &s.object_prediction_only};
 }
 
 // Sums, and how many views have each optional metric (NaN: the view has none).
@@ -417,14 +427,18 @@ std::string metrics_markdown(const std::vector<ViewResult>& views, const ReportO
      << fixed(metrics::kObjectAlpha, 2)
      << "; relMSE on the linear images, (p - r)² / (r² + 0.01); FLIP: mean HDR-FLIP of the linear images "
         "(0: no visible difference, 1: the largest); "
-        "clipped: the share of the object's pixels whose reference clips in sRGB (docs/evaluation.md).\n\n"
+        "clipped: the share of the object's pixels whose reference clips in sRGB; object share: the object's pixels "
+        "in the image; prediction only: the share of the object's pixels that only the prediction's alpha marks "
+        "(floaters or haze: the object metrics average over that much empty space too) (docs/evaluation.md).\n\n"
      << "| split | views | PSNR [dB] | SSIM | MSE | FLIP | object PSNR [dB] | object SSIM | object relMSE | "
-        "object FLIP | clipped | object share |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+        "object FLIP | clipped | object share | prediction only |\n"
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   const auto summary_row = [&](const SplitSummary& s, const std::string& name) {
     md << "| " << name << " | " << s.n_views << " | " << fixed(s.psnr, 2) << " | " << fixed(s.ssim, 4) << " | "
        << scientific(s.mse) << " | " << maybe(s.flip, 4) << " | " << maybe(s.object_psnr, 2) << " | "
        << maybe(s.object_ssim, 4) << " | " << maybe_scientific(s.object_rel_mse) << " | " << maybe(s.object_flip, 4)
-       << " | " << percent(s.object_clipped) << " | " << percent(s.object_fraction) << " |\n";
+       << " | " << percent(s.object_clipped) << " | " << percent(s.object_fraction) << " | "
+       << percent(s.object_prediction_only) << " |\n";
   };
   const auto summaries = summarize(views);
   for (const auto& s : summaries) summary_row(s, cell(s.split));
@@ -493,6 +507,10 @@ std::string format_summary_lines(const std::vector<ViewResult>& views) {
           << scientific(s.object_rel_mse);
       if (!std::isnan(s.object_flip)) out << "  FLIP " << fixed(s.object_flip, 4);
       out << "  clipped " << percent(s.object_clipped);
+      // A prediction whose alpha spreads far beyond the reference's: the object metrics are diluted by it.
+      if (s.object_prediction_only > kPredictionOnlyWarning)
+        out << "  prediction only " << percent(s.object_prediction_only)
+            << " (floaters or haze: the object metrics average over it)";
     }
     out << " (" << s.n_views << (s.n_views == 1 ? " view)\n" : " views)\n");
   }
