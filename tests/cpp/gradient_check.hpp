@@ -168,7 +168,9 @@ inline GradientCheckReport check_gradient(const Objective& f, const std::vector<
   EXPECT_LE(c.hi, theta.size());
   if (grad.size() != theta.size() || c.lo >= c.hi || c.hi > theta.size()) return report;
   for (std::size_t i = 0; i < grad.size(); ++i)
-    if (i < c.lo || i >= c.hi) EXPECT_EQ(grad[i], 0.0f) << "parameter " << i << " outside the checked block";
+    if (i < c.lo || i >= c.hi) {
+      EXPECT_EQ(grad[i], 0.0f) << "parameter " << i << " outside the checked block";
+    }
   double max_g = 0;
   for (std::size_t i = c.lo; i < c.hi; ++i) max_g = std::max(max_g, double(std::fabs(grad[i])));
   EXPECT_GT(max_g, 0.0) << "the gradient of the block is zero";

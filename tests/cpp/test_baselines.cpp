@@ -147,7 +147,9 @@ TEST(Methods, ImagesRenderInTilesOfAnySize) {
       const Image a = method::render_image(*model, camera, light, whole);
       const Image b = method::render_image(*model, camera, light, tiles);
       for (float v : b.pixels) ASSERT_TRUE(std::isfinite(v));
-      if (m == "bi" && !env) EXPECT_EQ(a.pixels, b.pixels);
+      if (m == "bi" && !env) {
+        EXPECT_EQ(a.pixels, b.pixels);
+      }
     }
   }
 }
@@ -268,7 +270,9 @@ TEST(Bi, FineSamplesFollowTheCoarseWeights) {
     // The merge: sorted, the coarse samples all present, deltas summing to the segment, positions on the ray.
     double sum = 0;
     for (std::uint32_t k = 0; k < na; ++k) {
-      if (k) ASSERT_LE(t_h[r * na + k - 1], t_h[r * na + k]);
+      if (k) {
+        ASSERT_LE(t_h[r * na + k - 1], t_h[r * na + k]);
+      }
       sum += d_h[r * na + k];
       for (int a = 0; a < 3; ++a)
         ASSERT_NEAR(pos_h[(std::size_t(r) * na + k) * 3 + a],
@@ -680,7 +684,9 @@ TEST(ShadowGradient, PointsKernelMatchesAHostReference) {
   }
   EXPECT_GT(on_segment, int(rows / 2));
   for (std::size_t i = 0; i < all.size(); ++i)  // padding rows of the tiled matrix: zero gradient
-    if (i / (std::size_t(cols) * 16) * 16 + i % 16 >= rows) EXPECT_EQ(all[i], 0.0f) << i;
+    if (i / (std::size_t(cols) * 16) * 16 + i % 16 >= rows) {
+      EXPECT_EQ(all[i], 0.0f) << i;
+    }
 }
 
 // The shadow gradient against finite differences of the whole render loss, V included: the training renders

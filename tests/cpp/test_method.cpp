@@ -274,7 +274,7 @@ TEST(Method, IndirectHeadCanSeeTheOpticalDepth) {
     spread += std::fabs(v - vis[0]);
   }
   EXPECT_GT(spread, 0.0);
-  for (const Json bad : {Json(-0.5), Json("deep"), Json(1e9)}) {
+  for (const Json& bad : {Json(-0.5), Json("deep"), Json(1e9)}) {
     config["indirect"]["optical_depth_input"] = bad;
     EXPECT_THROW(method::Ours(dev, config), ConfigError) << bad.dump();
   }

@@ -37,7 +37,9 @@ TEST(Scene, BuiltinScenesParseAndResolveEveryDefault) {
       EXPECT_EQ(again.medium->density.values, s.medium->density.values) << name;
       EXPECT_EQ(again.medium->g, s.medium->g);
     }
-    if (s.solid) EXPECT_EQ(again.solid->sdf.values, s.solid->sdf.values) << name;
+    if (s.solid) {
+      EXPECT_EQ(again.solid->sdf.values, s.solid->sdf.values) << name;
+    }
   }
   const Scene blobs = Scene::from_json(Scene::builtin_json("blobs", 1, 16));
   EXPECT_FALSE(blobs.medium->albedo_grid.empty());  // spatially varying albedo

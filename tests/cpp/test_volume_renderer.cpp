@@ -43,8 +43,9 @@ void use_variant(VolumeRenderer& renderer) {
     renderer.set_kernels(KernelVariant::WorkGroup, VolumeRenderer::WorkGroupParams{8, true});
   if (g_variant == "workgroup_unstaged")
     renderer.set_kernels(KernelVariant::WorkGroup, VolumeRenderer::WorkGroupParams{64, false});
-  if (g_variant != "auto")  // no silent fallback to the other variant
+  if (g_variant != "auto") {  // no silent fallback to the other variant
     EXPECT_EQ(kernel_variant_name(renderer.kernel_choice().variant), g_variant.substr(0, g_variant.find('_')));
+  }
 }
 
 class RendererVariant : public ::testing::TestWithParam<std::string> {
