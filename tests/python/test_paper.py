@@ -31,6 +31,12 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
     assert list(sh["runs"]) == ["w/o SH", "SH-1", "SH-3", "SH-5", "SH-7", "SH-9"]
     assert all(0 < v["psnr"] < 100 and -1 <= v["ssim"] <= 1 for v in sh["runs"].values())
     assert sh["scale"] == "ci" and set(sh["checks"]) == {"SH-5 >= SH-1", "SH-5 >= w/o SH"}
+    # Every setting trains and renders with the marched shadow and its gradient, at one learning rate.
+    assert sh["shadow"] == "march" and sh["lr"] == 3e-3
+    for v in sh["runs"].values():
+        model = json.load(open(os.path.join(v["run"], "config.json")))["model"]
+        assert model["training_visibility"] == "march" and model["inference_visibility"] == "march"
+        assert model["shadow_gradient"]["enabled"] and os.path.basename(v["run"]).endswith("-march-lr0.003")
     gen = json.load(open(tmp_path / "generalization" / "results.json"))
     assert list(gen["distance"]["psnr"]) == ["3", "5", "7", "10"]
     assert list(gen["intensity"]["psnr"]) == ["400", "800", "1200", "1600"]
@@ -89,9 +95,9 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
         r = compare(["--part", "media"] + bad, tmp_path / "bad", check=False)
         assert r.returncode != 0 and why in r.stderr, (bad, r.stderr[-2000:])
     # A rerun trains nothing and evaluates nothing; an evaluation that went missing is redone alone.
-    ckpt = tmp_path / "sh_ablation" / "runs" / "sh-5" / "checkpoint.relit"
+    ckpt = os.path.join(sh["runs"]["SH-5"]["run"], "checkpoint.relit")
     before = os.path.getmtime(ckpt)
-    os.remove(tmp_path / "sh_ablation" / "runs" / "sh-3" / "eval" / "metrics.json")
+    os.remove(os.path.join(sh["runs"]["SH-3"]["run"], "eval", "metrics.json"))
     r = run(["--only", "sh_ablation"], tmp_path)
     assert "relit train" not in r.stdout and r.stdout.count("+ relit eval") == 1, r.stdout
     assert os.path.getmtime(ckpt) == before
