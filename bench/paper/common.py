@@ -99,6 +99,11 @@ def parse_args(description, default_out):
     return parser(description, default_out).parse_args()
 
 
+def learning_rate(lr):
+    """The training overrides that set learning rate `lr` for both optimisers (render and visibility)."""
+    return {"optimizer": {"learning_rate": lr}, "visibility_optimizer": {"learning_rate": lr}}
+
+
 def merge(base, override):
     """`base` with the keys of `override` set recursively (dicts merge, everything else replaces)."""
     out = copy.deepcopy(base)

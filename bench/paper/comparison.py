@@ -90,8 +90,7 @@ def dataset_name(scene, lighting):
 def with_lr(r, method, lr, model=None):
     """The method's config at this scale with learning rate `lr` for both optimisers (render and visibility) and
     the part's `model` overrides ({method: model config})."""
-    return r.config(method=method, model=(model or {}).get(method),
-                    training={"optimizer": {"learning_rate": lr}, "visibility_optimizer": {"learning_rate": lr}})
+    return r.config(method=method, model=(model or {}).get(method), training=common.learning_rate(lr))
 
 
 def sweep(r, args, dataset, name, methods, results, model=None):

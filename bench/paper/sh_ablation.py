@@ -37,7 +37,7 @@ def main():
         model = {**common.MARCHED_SHADOW, "inference_visibility": "march"}
     lr = args.lr if args.lr is not None else (3e-3 if args.shadow == "march" else None)
     if lr is not None:
-        training = {"optimizer": {"learning_rate": lr}, "visibility_optimizer": {"learning_rate": lr}}
+        training = common.learning_rate(lr)
     rows = []
     results = {"experiment": "sh_ablation", "dataset": data, "shadow": args.shadow, "lr": lr, "runs": {}}
     for label, sh in SETTINGS:
