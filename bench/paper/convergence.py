@@ -37,6 +37,7 @@ def parse_args():
     p.add_argument("--rates", nargs="+", type=comparison.rate, default=[], metavar="METHOD=LR",
                    help="learning rates (default: those the comparison's sweep chose, %s)" % " ".join(
                        "%s=%g" % kv for kv in RATES.items()))
+    comparison.add_ours_shadow(p)
     p.add_argument("--noise-views", type=int, default=None,
                    help="training views path-traced again for the references' noise (default: 10, 2 at ci)")
     args = p.parse_args()
@@ -109,7 +110,9 @@ def main():
     r = common.Relit(args.out, args.scale, args.seed, args.device, args.steps)
     labels = dict((m, label) for label, m in comparison.MEDIA_METHODS)
     kinds = (("every bounce", None), ("single scattering", 1))
-    results = {"experiment": "convergence", "rates": {m: args.rates[m] for m in args.methods}, "datasets": {}}
+    model, tags = comparison.media_protocol(args.ours_shadow)
+    results = {"experiment": "convergence", "rates": {m: args.rates[m] for m in args.methods},
+               "ours_shadow": args.ours_shadow, "datasets": {}}
     tables, checks = [], {}
     for name in args.datasets:
         scene, lighting = next(p for p in comparison.MEDIA if comparison.dataset_name(*p) == name)
@@ -123,7 +126,8 @@ def main():
                                                                                 "runs": {}})
             for method in args.methods:
                 lr = args.rates[method]
-                run = r.train("%s-%s-lr%g" % (data_name, method, lr), path, comparison.with_lr(r, method, lr))
+                run = r.train("%s-%s%s-lr%g" % (data_name, method, (tags or {}).get(method, ""), lr), path,
+                              comparison.with_lr(r, method, lr, model))
                 m = r.evaluate(run, splits=["test"])
                 psnr, _ = common.split_means(m, "test")
                 conv = common.convergence(run)

@@ -62,15 +62,17 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
                 assert v["lr"] == sweep[method]["chosen"] and "%g" % v["lr"] == max(scores, key=scores.get)
                 assert 0 < v["object"]["psnr"] < 100 and 0 <= v["object"]["flip"] <= 1
                 assert set(v["convergence"]) == {"early", "last", "ratio", "converged", "rising"}
-    # On solids Ours and Ours + BRDF train and render with the marched shadow (and its gradient), Ours' SH head sees
-    # it; on media Ours keeps its preset.
-    for part, method, march in (("solids", "ours", True), ("solids", "ours_brdf", True), ("media", "ours", False)):
+    # Ours and Ours + BRDF train and render with the marched shadow (and its gradient), as the baselines do; on
+    # solids Ours' SH head sees it. The marched runs of Ours on media are named so (another protocol's folder of
+    # runs is not resumed as theirs).
+    assert cmp["ours_shadow_on_media"] == "march"
+    for part, method in (("solids", "ours"), ("solids", "ours_brdf"), ("media", "ours")):
         for runs in cmp[part].values():
             model = json.load(open(os.path.join(runs[method]["run"], "config.json")))["model"]
-            assert (model["training_visibility"] == "march") == march, (part, method)
-            assert (model["inference_visibility"] == "march") == march, (part, method)
-            assert model["shadow_gradient"]["enabled"] == march, (part, method)
-            assert model["indirect"]["visibility_input"] == (march and method == "ours"), (part, method)
+            assert model["training_visibility"] == "march" and model["inference_visibility"] == "march", part
+            assert model["shadow_gradient"]["enabled"], (part, method)
+            assert model["indirect"]["visibility_input"] == (part == "solids" and method == "ours"), (part, method)
+            assert ("-march-" in os.path.basename(runs[method]["run"])) == (part == "media"), runs[method]["run"]
     assert set(cmp["gaps"]) == {"cloud-point", "cloud-envpoint"}
     assert any(k.startswith("no run runs away") for k in cmp["checks"])
     assert any(k.startswith("no run's loss rises") for k in cmp["checks"])
@@ -89,6 +91,13 @@ def test_paper_experiments_run_end_to_end_and_resume(tmp_path):
     assert set(cell["media"]) == {"cloud-envpoint"} and set(cell["media"]["cloud-envpoint"]) == {"nerv"}
     assert cell["media"]["cloud-envpoint"]["nerv"]["psnr"] == nerv["psnr"]
     assert cell["lr_sweep"]["media"]["cloud-envpoint"]["nerv"] == {"chosen": nerv["lr"], "given": True}
+    # --ours-shadow network trains Ours on media with its preset's isolated visibility network, under the old names.
+    net = compare(["--part", "media", "--datasets", "cloud-point", "--methods", "ours", "--rates", "ours=0.01",
+                   "--ours-shadow", "network", "--steps", "30"], tmp_path / "network")
+    run_dir = json.load(open(tmp_path / "network" / "results.json"))["media"]["cloud-point"]["ours"]["run"]
+    model = json.load(open(os.path.join(run_dir, "config.json")))["model"]
+    assert os.path.basename(run_dir) == "cloud-point-ours-lr0.01", net.stdout[-2000:]
+    assert model["training_visibility"] != "march" and not model["shadow_gradient"]["enabled"]
     for bad, why in ((["--rates", "nerv"], "expected METHOD=LR"), (["--rates", "nerv=nan"], "positive finite"),
                      (["--rates", "bi=0.01"], "no learning rate for"),
                      (["--datasets", "fog-point"], "unknown dataset"), (["--methods", "mlp"], "unknown method")):
