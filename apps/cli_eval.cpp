@@ -37,7 +37,7 @@ int run_compare_folders(const EvalOptions& o) {
   const Device device = Device::select(o.device);
   ProgressBar bar("eval");
   const auto result =
-      report::compare_folders(device, o.predictions, o.references, [&](const Progress& p) { return bar(p); });
+      report::compare_folders(device, o.predictions, o.references, o.splits, [&](const Progress& p) { return bar(p); });
   bar.finish();
   if (!result.unmatched_predictions.empty())
     std::cerr << "relit: " << result.unmatched_predictions.size() << " image"
@@ -99,7 +99,9 @@ void add_eval_command(CLI::App& app) {
                   "paired by split folder and file name)");
   cmd->add_option("--references", o->references, "reference images: a relit dataset folder or any folder of images");
   cmd->add_option("--dataset", o->dataset, "dataset folder (default: the run's)");
-  cmd->add_option("--split", o->splits, "splits to evaluate (default: test and every test_* set)");
+  cmd->add_option("--split", o->splits,
+                  "splits to evaluate (default: test and every test_* set; with --predictions: every split of the "
+                  "references)");
   cmd->add_option("--max-views", o->max_views, "at most this many views per split (0: all)")
       ->check(integer_in(0, 1000000))
       ->capture_default_str();

@@ -80,10 +80,10 @@ std::vector<report::ViewResult> views_from(const py::iterable& items, bool need_
     const std::string where = "views[" + std::to_string(index) + "] ('" + v.split + "/" + v.name + "')";
     v.prediction = image_of(field(item, "prediction"), where, "prediction", v.width, v.height);
     v.reference = image_of(field(item, "reference"), where, "reference", v.width, v.height);
+    v.prediction_alpha = alpha_of(field(item, "prediction_alpha"), where, "prediction_alpha", v.width, v.height);
     masks.push_back(
         metrics::object_mask(alpha_of(field(item, "reference_alpha"), where, "reference_alpha", v.width, v.height),
-                             alpha_of(field(item, "prediction_alpha"), where, "prediction_alpha", v.width, v.height),
-                             std::size_t(v.width) * v.height));
+                             v.prediction_alpha, std::size_t(v.width) * v.height));
 
     py::object source = field(item, "metrics");
     if (source.is_none()) source = py::reinterpret_borrow<py::object>(item);
@@ -154,7 +154,8 @@ void bind_report(py::module_& m) {
       "views: dicts or objects with 'prediction' and 'reference' (linear float (H, W, 3) arrays), 'split'\n"
       "(default 'test'), 'name' (default: the index) and optionally 'psnr', 'ssim', 'mse', 'flip' (or 'metrics'\n"
       "holding them); missing metrics are computed with relit.metrics on `device`, over\n"
-      "the object too where a view has 'reference_alpha' / 'prediction_alpha' ((H, W)).\n"
+      "the object too where a view has 'reference_alpha' / 'prediction_alpha' ((H, W)); the .exr of a view with\n"
+      "'prediction_alpha' carries it as its alpha channel.\n"
       "Returns the summary lines to print (one per split, then 'PSNR <mean>' and 'SSIM <mean>').");
   m.def(
       "contact_sheet",

@@ -507,6 +507,67 @@ TEST(Report, MetricsFromTheDeviceAndAPerfectView) {
   EXPECT_TRUE(contains(report::format_summary_lines(views), "\nPSNR inf  (mean over"));
 }
 
+TEST(Report, PredictionAlphaRoundTripsThroughTheWrittenFolder) {
+  // A view with the prediction's alpha: its EXR is RGBA, and comparing the written folder with the references
+  // again (relit eval --predictions) finds the same object mask and metrics, floaters (prediction-only pixels)
+  // included; --split keeps one split, and a split without references is an error.
+  const Device d = test::test_device();
+  const std::uint32_t w = 16, h = 12;
+  test::TempDir dir("report_alpha");
+  std::vector<ViewResult> views;
+  for (const char* split : {"test", "train"}) {
+    ViewResult v = view(split, "r_000", 0, 0, 0.0f, 0.0f, w, h);
+    std::vector<float> ref_alpha(std::size_t(w) * h, 0.0f);
+    v.prediction_alpha.assign(std::size_t(w) * h, 0.0f);
+    for (std::uint32_t y = 0; y < h; ++y)
+      for (std::uint32_t x = 0; x < w; ++x) {
+        const std::size_t p = std::size_t(y) * w + x;
+        ref_alpha[p] = (x >= 4 && x < 10 && y >= 3 && y < 9) ? 0.9f : 0.0f;
+        v.prediction_alpha[p] = (x >= 5 && x < 13 && y >= 3 && y < 9) ? 0.7f : 0.0f;  // a floater right of it
+        for (int c = 0; c < 3; ++c) {
+          v.reference[3 * p + c] = ref_alpha[p] * (0.3f + 0.1f * float(c));
+          v.prediction[3 * p + c] = v.prediction_alpha[p] * (0.35f + 0.05f * float((x + c) % 3));
+        }
+      }
+    const auto mask = metrics::object_mask(ref_alpha, v.prediction_alpha, std::size_t(w) * h);
+    v.metrics = metrics::compare(d, v.prediction, v.reference, w, h, 3, &mask);
+    views.push_back(v);
+    // The references as RGBA EXRs, as a dataset keeps them.
+    Image ref(int(w), int(h), 4);
+    for (std::size_t p = 0; p < ref_alpha.size(); ++p) {
+      for (int c = 0; c < 3; ++c) ref.pixels[4 * p + c] = v.reference[3 * p + c];
+      ref.pixels[4 * p + 3] = ref_alpha[p];
+    }
+    fs::create_directories(dir.path() / "refs" / split);
+    write_image((dir.path() / "refs" / split / "r_000.exr").string(), ref);
+  }
+  ASSERT_GT(views[0].metrics.object.prediction_only, 0.0);
+  report::ReportOptions o;
+  o.write_exr = true;
+  report::write_report((dir.path() / "eval").string(), views, o);
+  const Image exr = read_image((dir.path() / "eval" / "test" / "r_000.exr").string());
+  ASSERT_EQ(exr.channels, 4);
+  EXPECT_EQ(split_rgb_alpha(exr).second, views[0].prediction_alpha);
+
+  const auto again =
+      report::compare_folders(d, (dir.path() / "eval").string(), (dir.path() / "refs").string(), {"test"});
+  ASSERT_EQ(again.views.size(), 1u);
+  EXPECT_EQ(again.views[0].split, "test");
+  const auto &a = again.views[0].metrics.object, &b = views[0].metrics.object;
+  EXPECT_EQ(a.pixels, b.pixels);
+  EXPECT_DOUBLE_EQ(a.prediction_only, b.prediction_only);
+  EXPECT_DOUBLE_EQ(a.psnr, b.psnr);
+  EXPECT_DOUBLE_EQ(a.rel_mse, b.rel_mse);
+  EXPECT_EQ(report::compare_folders(d, (dir.path() / "eval").string(), (dir.path() / "refs").string()).views.size(),
+            2u);
+  try {
+    report::compare_folders(d, (dir.path() / "eval").string(), (dir.path() / "refs").string(), {"test_light"});
+    ADD_FAILURE() << "a split without references was accepted";
+  } catch (const IOError& e) {
+    EXPECT_TRUE(contains(e.what(), "test_light")) << e.what();
+  }
+}
+
 TEST(Report, BadInputWritesNothing) {
   test::TempDir dir("report");
   const std::string old_json = "{\"old\": true}\n";

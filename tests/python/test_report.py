@@ -164,6 +164,20 @@ def test_cli_eval_compares_two_folders_of_images(tmp_path):
         assert 0 < v["flip"] < 1 and 0 < v["object"]["flip"] < 1
     assert "object: PSNR" in r.stdout and (tmp_path / "report" / "contact_sheet_test.png").exists()
 
+    # --split keeps the dataset's test views (predictions of the test views alone need no training views).
+    os.remove(tmp_path / "pred" / "train" / "r_000.exr")
+    os.remove(tmp_path / "pred" / "train" / "r_000.png")
+    test_only = run_python(["-m", "relit", "eval", "--predictions", str(tmp_path / "pred"), "--references",
+                            str(tmp_path / "ref"), "--split", "test", "--out", str(tmp_path / "test_only")])
+    assert test_only.returncode == 0, test_only.stderr
+    views = json.loads((tmp_path / "test_only" / "metrics.json").read_text())["views"]
+    assert [(v["split"], v["name"]) for v in views] == [("test", "r_000"), ("test", "r_001")]
+    assert views == report["views"][:2]
+    nosplit = run_python(["-m", "relit", "eval", "--predictions", str(tmp_path / "pred"), "--references",
+                          str(tmp_path / "ref"), "--split", "test_light", "--out", str(tmp_path / "nosplit")])
+    assert nosplit.returncode != 0 and "'test_light'" in nosplit.stderr
+    assert not (tmp_path / "nosplit").exists()
+
     same = run_python(["-m", "relit", "eval", "--predictions", str(tmp_path / "ref"), "--references", str(tmp_path / "ref"),
                        "--out", str(tmp_path / "same")])
     assert same.returncode == 0, same.stderr

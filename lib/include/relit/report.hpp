@@ -37,7 +37,10 @@ struct ViewResult {
   std::string name;   ///< unique within the split ("r_012"); names <split>/<name>.png
   std::uint32_t width = 0, height = 0;
   std::vector<float> prediction, reference;  ///< linear RGB, height x width x 3, row-major from the top
-  metrics::ImageComparison metrics;          ///< usually metrics::compare(device, prediction, reference, w, h, 3)
+  /// The prediction's alpha (height x width) or empty: the EXR of the prediction then carries it as its A channel,
+  /// so that comparing the written folder again (compare_folders) finds the same object mask.
+  std::vector<float> prediction_alpha;
+  metrics::ImageComparison metrics;  ///< usually metrics::compare(device, prediction, reference, w, h, 3)
 };
 
 /// Means over the views of a split (or of all views: split "all").
@@ -128,10 +131,12 @@ struct FolderComparison {
 /// a reference's key is its split and file stem: test/r_000 for DIR/test/r_000.exr (the split is the folder
 /// relative to DIR with '/' as '_', "images" at the top). The prediction of a key is found under `predictions`
 /// the same way, with any image extension (.exr, .pfm, .hdr before .png, .jpg). Alpha channels, where either
-/// image has one, give the object mask (metrics::object_mask). Throws IOError naming the references without a
-/// prediction, a size mismatch, an unreadable image or non-finite pixels.
+/// image has one, give the object mask (metrics::object_mask). `splits`, when not empty, keeps the references and
+/// predictions of those splits only (relit eval --split test: a dataset's test views, without its training views).
+/// Throws IOError naming the references without a prediction, a split with no reference, a size mismatch, an
+/// unreadable image or non-finite pixels.
 FolderComparison compare_folders(const Device& device, const std::string& predictions, const std::string& references,
-                                 const ProgressCallback& progress = {});
+                                 const std::vector<std::string>& splits = {}, const ProgressCallback& progress = {});
 
 /// What a program prints: one line per split, "<split>: PSNR 31.23 dB  SSIM 0.9512  FLIP 0.0812 (50 views)" (FLIP
 /// and the object's metrics where the views have them), then

@@ -50,6 +50,7 @@ std::vector<report::ViewResult> evaluate(const Model& model, const std::string& 
     v.prediction = std::move(prediction);
     v.reference = split->image(i);
     const auto mask = metrics::object_mask(split->alpha(i), alpha, alpha.size());
+    v.prediction_alpha = std::move(alpha);
     v.metrics = metrics::compare(model.device(), v.prediction, v.reference, v.width, v.height, 3, &mask);
     views.push_back(std::move(v));
     tracker.update(views.size(), split->split + "/" + split->names[i]);

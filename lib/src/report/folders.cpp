@@ -86,16 +86,26 @@ Image read_rgb_image(const std::string& path) {
 }  // namespace
 
 FolderComparison compare_folders(const Device& device, const std::string& predictions, const std::string& references,
-                                 const ProgressCallback& progress) {
-  const auto predicted = images_under(predictions, "predictions");
-  std::vector<std::pair<std::string, std::string>> refs;
+                                 const std::vector<std::string>& splits, const ProgressCallback& progress) {
+  const auto chosen = [&](const std::string& key) {
+    return splits.empty() || std::find(splits.begin(), splits.end(), key.substr(0, key.find('/'))) != splits.end();
+  };
+  std::map<std::string, std::string> predicted;
+  for (const auto& entry : images_under(predictions, "predictions"))
+    if (chosen(entry.first)) predicted.insert(entry);
+  std::vector<std::pair<std::string, std::string>> refs, all_refs;
   if (is_dataset(references)) {
-    refs = dataset_images(references);
+    all_refs = dataset_images(references);
   } else {
-    for (const auto& entry : images_under(references, "references")) refs.push_back(entry);
+    for (const auto& entry : images_under(references, "references")) all_refs.push_back(entry);
   }
-  if (refs.empty())
+  if (all_refs.empty())
     throw IOError("the references folder " + references + " holds no images (.exr, .pfm, .hdr, .png, .jpg)");
+  for (const auto& entry : all_refs)
+    if (chosen(entry.first)) refs.push_back(entry);
+  for (const auto& split : splits)
+    if (std::none_of(refs.begin(), refs.end(), [&](const auto& r) { return r.first.rfind(split + "/", 0) == 0; }))
+      throw IOError("the references folder " + references + " holds no image of the split '" + split + "'");
   std::vector<std::string> missing;
   for (const auto& [key, path] : refs)
     if (!predicted.count(key)) missing.push_back(key);
@@ -132,6 +142,7 @@ FolderComparison compare_folders(const Device& device, const std::string& predic
         if (!std::isfinite(x))
           throw IOError((img == &v.prediction ? pred_path : ref_path) + " holds a NaN or infinite value");
     const auto mask = metrics::object_mask(ref_alpha, pred_alpha, std::size_t(v.width) * v.height);
+    v.prediction_alpha = std::move(pred_alpha);
     v.metrics = metrics::compare(device, v.prediction, v.reference, v.width, v.height, 3, &mask);
     out.views.push_back(std::move(v));
     tracker.update(out.views.size(), key);

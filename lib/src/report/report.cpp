@@ -90,6 +90,16 @@ void check_images(const ViewResult& v, std::size_t index) {
                           std::to_string(v.height));
   check_image(v, index, v.prediction, "prediction");
   check_image(v, index, v.reference, "reference");
+  const std::size_t pixels = std::size_t(v.width) * v.height;
+  if (!v.prediction_alpha.empty() && v.prediction_alpha.size() != pixels)
+    throw InvalidArgument("report: " + label(v, index) + ": the prediction's alpha has " +
+                          std::to_string(v.prediction_alpha.size()) +
+                          " values, expected width x height = " + std::to_string(pixels));
+  const auto bad =
+      std::find_if(v.prediction_alpha.begin(), v.prediction_alpha.end(), [](float a) { return !std::isfinite(a); });
+  if (bad != v.prediction_alpha.end())
+    throw InvalidArgument("report: " + label(v, index) + ": the prediction's alpha has a non-finite value at pixel " +
+                          std::to_string(bad - v.prediction_alpha.begin()));
 }
 
 std::string fixed(double v, int digits) {
@@ -488,7 +498,18 @@ void write_report(const std::string& dir, const std::vector<ViewResult>& views, 
       image.pixels = v.prediction;
       const std::string base = (root / v.split / v.name).string();
       if (options.write_predictions) write_image(base + ".png", image);
-      if (options.write_exr) write_image(base + ".exr", image);
+      if (options.write_exr) {
+        if (v.prediction_alpha.empty()) {
+          write_image(base + ".exr", image);
+        } else {  // RGBA: the object mask's prediction side, for a later relit eval --predictions
+          Image rgba(int(v.width), int(v.height), 4);
+          for (std::size_t p = 0; p < v.prediction_alpha.size(); ++p) {
+            for (int c = 0; c < 3; ++c) rgba.pixels[4 * p + c] = v.prediction[3 * p + c];
+            rgba.pixels[4 * p + 3] = v.prediction_alpha[p];
+          }
+          write_image(base + ".exr", rgba);
+        }
+      }
     }
   }
   for (const auto& [file, image] : sheets) write_image((root / file).string(), image);
