@@ -37,8 +37,8 @@ SOLIDS = [("spheres", "point"), ("torus", "point")]
 SOLID_MODEL = {"ours": {**common.MARCHED_SHADOW, "inference_visibility": "march",
                         "indirect": {"visibility_input": True}}}
 # On media Ours trains the same way by default (--ours-shadow network gives its preset's isolated visibility
-# network): every method then shades its training renders with the same march, and on the 128x128 clouds that
-# scores 0.5 dB above the isolated network (docs/results.md, "Media at 128x128"), as in the SH ablation; on
+# network): every method then shades its training renders with the same march, and on the five 128x128 media that
+# scores 0.1-0.5 dB above the isolated network (docs/results.md, "Media at 128x128"), as in the SH ablation; on
 # single-scattering data the isolated network leaves a haze its shadow does not see ("Convergence against the
 # models' floors").
 MEDIA_MODEL = {"ours": {**common.MARCHED_SHADOW, "inference_visibility": "march"}}
