@@ -142,4 +142,18 @@ TEST(Progress, TrackerReportsRateEtaAndCancels) {
   EXPECT_NEAR(seen[1].eta, seen[1].rate > 0 ? 8.0 / seen[1].rate : 0.0, 1e-9);
 }
 
+TEST(Image, JoinRgbAlphaIsTheInverseOfSplit) {
+  Image rgba(3, 2, 4);
+  for (std::size_t k = 0; k < rgba.pixels.size(); ++k) rgba.pixels[k] = 0.1f * float(k);
+  const auto [rgb, alpha] = split_rgb_alpha(rgba);
+  const Image joined = join_rgb_alpha(rgb, alpha, 3, 2);
+  EXPECT_EQ(joined.channels, 4);
+  EXPECT_EQ(joined.pixels, rgba.pixels);
+  const Image plain = join_rgb_alpha(rgb, {}, 3, 2);
+  EXPECT_EQ(plain.channels, 3);
+  EXPECT_EQ(plain.pixels, rgb);
+  EXPECT_THROW(join_rgb_alpha(rgb, alpha, 2, 3 + 1), InvalidArgument);
+  EXPECT_THROW(join_rgb_alpha(rgb, std::vector<float>(5, 0.0f), 3, 2), InvalidArgument);
+}
+
 }  // namespace relit

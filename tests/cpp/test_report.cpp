@@ -533,13 +533,9 @@ TEST(Report, PredictionAlphaRoundTripsThroughTheWrittenFolder) {
     v.metrics = metrics::compare(d, v.prediction, v.reference, w, h, 3, &mask);
     views.push_back(v);
     // The references as RGBA EXRs, as a dataset keeps them.
-    Image ref(int(w), int(h), 4);
-    for (std::size_t p = 0; p < ref_alpha.size(); ++p) {
-      for (int c = 0; c < 3; ++c) ref.pixels[4 * p + c] = v.reference[3 * p + c];
-      ref.pixels[4 * p + 3] = ref_alpha[p];
-    }
     fs::create_directories(dir.path() / "refs" / split);
-    write_image((dir.path() / "refs" / split / "r_000.exr").string(), ref);
+    write_image((dir.path() / "refs" / split / "r_000.exr").string(),
+                join_rgb_alpha(v.reference, ref_alpha, int(w), int(h)));
   }
   ASSERT_GT(views[0].metrics.object.prediction_only, 0.0);
   report::ReportOptions o;

@@ -301,6 +301,19 @@ std::pair<std::vector<float>, std::vector<float>> split_rgb_alpha(const Image& i
   return {std::move(rgb), std::move(alpha)};
 }
 
+Image join_rgb_alpha(const std::vector<float>& rgb, const std::vector<float>& alpha, int width, int height) {
+  const std::size_t pixels = std::size_t(width) * height;
+  if (width <= 0 || height <= 0 || rgb.size() != pixels * 3 || (!alpha.empty() && alpha.size() != pixels))
+    throw InvalidArgument("join_rgb_alpha: " + std::to_string(rgb.size()) + " RGB and " + std::to_string(alpha.size()) +
+                          " alpha values for a " + std::to_string(width) + " x " + std::to_string(height) + " image");
+  Image img(width, height, alpha.empty() ? 3 : 4);
+  for (std::size_t p = 0; p < pixels; ++p) {
+    for (int c = 0; c < 3; ++c) img.pixels[p * img.channels + c] = rgb[p * 3 + c];
+    if (!alpha.empty()) img.pixels[p * 4 + 3] = alpha[p];
+  }
+  return img;
+}
+
 bool draw_text(Image& image, int x, int y, const std::string& text, int size, float value, TextAlign align) {
   if (image.empty() || text.empty() || size <= 0) return true;
 #if !RELIT_WITH_OPENIMAGEIO

@@ -66,6 +66,9 @@ std::vector<std::pair<std::string, std::string>> dataset_images(const std::strin
   return out;
 }
 
+// The split of a key "split/stem".
+std::string split_of(const std::string& key) { return key.substr(0, key.find('/')); }
+
 bool is_dataset(const std::string& dir) {
   std::error_code ec;
   for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
@@ -87,24 +90,22 @@ Image read_rgb_image(const std::string& path) {
 
 FolderComparison compare_folders(const Device& device, const std::string& predictions, const std::string& references,
                                  const std::vector<std::string>& splits, const ProgressCallback& progress) {
-  const auto chosen = [&](const std::string& key) {
-    return splits.empty() || std::find(splits.begin(), splits.end(), key.substr(0, key.find('/'))) != splits.end();
+  const auto left_out = [&](const auto& entry) {
+    return !splits.empty() && std::find(splits.begin(), splits.end(), split_of(entry.first)) == splits.end();
   };
-  std::map<std::string, std::string> predicted;
-  for (const auto& entry : images_under(predictions, "predictions"))
-    if (chosen(entry.first)) predicted.insert(entry);
-  std::vector<std::pair<std::string, std::string>> refs, all_refs;
+  auto predicted = images_under(predictions, "predictions");
+  for (auto it = predicted.begin(); it != predicted.end();) it = left_out(*it) ? predicted.erase(it) : std::next(it);
+  std::vector<std::pair<std::string, std::string>> refs;
   if (is_dataset(references)) {
-    all_refs = dataset_images(references);
+    refs = dataset_images(references);
   } else {
-    for (const auto& entry : images_under(references, "references")) all_refs.push_back(entry);
+    for (const auto& entry : images_under(references, "references")) refs.push_back(entry);
   }
-  if (all_refs.empty())
+  if (refs.empty())
     throw IOError("the references folder " + references + " holds no images (.exr, .pfm, .hdr, .png, .jpg)");
-  for (const auto& entry : all_refs)
-    if (chosen(entry.first)) refs.push_back(entry);
+  refs.erase(std::remove_if(refs.begin(), refs.end(), left_out), refs.end());
   for (const auto& split : splits)
-    if (std::none_of(refs.begin(), refs.end(), [&](const auto& r) { return r.first.rfind(split + "/", 0) == 0; }))
+    if (std::none_of(refs.begin(), refs.end(), [&](const auto& r) { return split_of(r.first) == split; }))
       throw IOError("the references folder " + references + " holds no image of the split '" + split + "'");
   std::vector<std::string> missing;
   for (const auto& [key, path] : refs)
@@ -129,7 +130,7 @@ FolderComparison compare_folders(const Device& device, const std::string& predic
                     " but its reference " + ref_path + " is " + std::to_string(ref.width) + "x" +
                     std::to_string(ref.height));
     ViewResult v;
-    v.split = key.substr(0, key.find('/'));
+    v.split = split_of(key);
     v.name = key.substr(key.find('/') + 1);
     v.width = std::uint32_t(ref.width);
     v.height = std::uint32_t(ref.height);

@@ -498,18 +498,9 @@ void write_report(const std::string& dir, const std::vector<ViewResult>& views, 
       image.pixels = v.prediction;
       const std::string base = (root / v.split / v.name).string();
       if (options.write_predictions) write_image(base + ".png", image);
-      if (options.write_exr) {
-        if (v.prediction_alpha.empty()) {
-          write_image(base + ".exr", image);
-        } else {  // RGBA: the object mask's prediction side, for a later relit eval --predictions
-          Image rgba(int(v.width), int(v.height), 4);
-          for (std::size_t p = 0; p < v.prediction_alpha.size(); ++p) {
-            for (int c = 0; c < 3; ++c) rgba.pixels[4 * p + c] = v.prediction[3 * p + c];
-            rgba.pixels[4 * p + 3] = v.prediction_alpha[p];
-          }
-          write_image(base + ".exr", rgba);
-        }
-      }
+      // The EXR with the prediction's alpha where the view has it: the object mask for a later eval --predictions.
+      if (options.write_exr)
+        write_image(base + ".exr", join_rgb_alpha(v.prediction, v.prediction_alpha, int(v.width), int(v.height)));
     }
   }
   for (const auto& [file, image] : sheets) write_image((root / file).string(), image);

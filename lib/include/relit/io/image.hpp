@@ -37,6 +37,10 @@ void write_image(const std::string& path, const Image& image);
 /// with three channels). Throws InvalidArgument for fewer than three.
 std::pair<std::vector<float>, std::vector<float>> split_rgb_alpha(const Image& image);
 
+/// The inverse: a width x height image of `rgb` (h x w x 3) with `alpha` (h x w) as its fourth channel, or RGB
+/// when `alpha` is empty. Throws InvalidArgument when a size does not match.
+Image join_rgb_alpha(const std::vector<float>& rgb, const std::vector<float>& alpha, int width, int height);
+
 enum class TextAlign { Left, Center, Right };
 
 /// Draws one line of `text` into `image` (any channel count, linear values) with its top at `y` and its left
