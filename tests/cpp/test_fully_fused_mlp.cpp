@@ -459,6 +459,14 @@ TEST(FullyFusedMLP, KernelVariantFollowsTheTableConfigAndEnvironment) {
   EXPECT_EQ(FullyFusedMLP::device_default(amd).workgroup.items, 256u);
   EXPECT_NE(FullyFusedMLP::device_default(intel).source.find("Intel"), std::string::npos);
   EXPECT_NE(FullyFusedMLP::device_default(other).source.find("other"), std::string::npos);
+  // AVX-512 CPUs: Intel's weight-gradient work-items own a whole layer's rows, AMD's 24 (mlp_tuning.cpp).
+  DeviceInfo amd_cpu = cpu;
+  amd_cpu.vendor = "AuthenticAMD";
+  EXPECT_EQ(c.source, "table: Intel AVX-512 CPU");
+  EXPECT_EQ(c.blocking.dw_region, 256u);
+  EXPECT_EQ(FullyFusedMLP::device_default(amd_cpu).source, "table: AVX-512 CPU");
+  EXPECT_EQ(FullyFusedMLP::device_default(amd_cpu).blocking.dw_region, 24u);
+  EXPECT_EQ(FullyFusedMLP::device_default(amd_cpu).blocking.forward_tiles, c.blocking.forward_tiles);
 
   // The config's kernel_variant, then RELIT_MLP_VARIANT over it, then set_blocking() / set_workgroup().
   const Device device = test::test_device();

@@ -45,6 +45,12 @@ struct Row {
 //    on a quiet 2-core Zen 5, docs/networks.md.
 constexpr Blocking kAvx2{};
 constexpr Blocking kAvx512{4, 6, 6, 16, 8, 3, 24, 16384, 16};
+//  - Intel AVX-512 CPUs: the same blocks, but a weight-gradient work-item owns all 256 rows of a layer (not 24):
+//    its chunk's input rows (4.9 MB at width 256) are then read from memory once per sub-chunk and from L2 for
+//    every row block, not re-read from memory by the 11 work-items of each chunk. On a 2-core Intel Xeon
+//    (AVX-512, 2 MB L2 per core) the width-256 training step took 832-860 ms against 915-922 with 24 rows,
+//    alternated in one bench_mlp run (docs/networks.md); the width-64 net (fused training) does not change.
+constexpr Blocking kAvx512Intel{4, 6, 6, 16, 8, 3, 256, 16384, 16};
 
 // Work-group parameters: samples, items, rows x cols register block, k_tile, dW tile / block / samples, dW
 // chunk.
@@ -66,8 +72,9 @@ constexpr WorkGroupParams kWgIntel{64, 128, 4, 4, 16, 32, 4, 16, 512};
 constexpr WorkGroupParams kWgOther{64, 64, 4, 4, 16, 32, 4, 16, 512};
 
 const Row kTable[] = {
-    // CPUs: the SIMD kernels, measured (PoCL on 2-core AMD EPYC machines with AVX2 and with AVX-512, Zen 5;
-    // docs/networks.md). Their work-group parameters are only used when the work-group variant is forced.
+    // CPUs: the SIMD kernels, measured (PoCL on 2-core AMD EPYC machines with AVX2 and with AVX-512, Zen 5,
+    // and on a 2-core Intel Xeon with AVX-512; docs/networks.md). Their work-group parameters are only used when the work-group variant is forced.
+    {"Intel AVX-512 CPU", "cpu", "intel", 16, Variant::Simd, kAvx512Intel, kWgOther, true},
     {"AVX-512 CPU", "cpu", "", 16, Variant::Simd, kAvx512, kWgOther, true},
     {"CPU", "cpu", "", 0, Variant::Simd, kAvx2, kWgOther, true},
     {"NVIDIA GPU", "gpu", "nvidia", 0, Variant::WorkGroup, kAvx2, kWgNvidia, true},
