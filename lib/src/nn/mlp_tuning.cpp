@@ -73,7 +73,8 @@ constexpr WorkGroupParams kWgOther{64, 64, 4, 4, 16, 32, 4, 16, 512};
 
 const Row kTable[] = {
     // CPUs: the SIMD kernels, measured (PoCL on 2-core AMD EPYC machines with AVX2 and with AVX-512, Zen 5,
-    // and on a 2-core Intel Xeon with AVX-512; docs/networks.md). Their work-group parameters are only used when the work-group variant is forced.
+    // and on a 2-core Intel Xeon with AVX-512; docs/networks.md). Their work-group parameters are only used when the
+    // work-group variant is forced.
     {"Intel AVX-512 CPU", "cpu", "intel", 16, Variant::Simd, kAvx512Intel, kWgOther, true},
     {"AVX-512 CPU", "cpu", "", 16, Variant::Simd, kAvx512, kWgOther, true},
     {"CPU", "cpu", "", 0, Variant::Simd, kAvx2, kWgOther, true},
