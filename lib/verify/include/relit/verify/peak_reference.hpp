@@ -14,17 +14,31 @@
 
 namespace relit::reference {
 
+/// The start `a` and the constant term `b` of chain `chain`, lane `lane` of work-item `gid` (kernels/peak.cl sets
+/// its chains up the same way). Every chain starts above 0 and has b > 0, so it moves monotonically towards its
+/// fixed point b / (1 - c) >= 1 and never becomes subnormal: a chain with b = 0 decays towards 0 and, after
+/// ~10^5 steps, stays at a subnormal fixed point, where every FMA on an Intel core takes a microcode assist
+/// (one such lane in one of each work-item's 12 chains made the kernel ~19x slower on a 2-core Xeon: the
+/// calibration, timing its growth steps past that point, chose 13 ms launches, and 5 s launches reported
+/// 25 GFLOP/s against 475).
+struct PeakChain {
+  float a, b;
+};
+inline PeakChain peak_chain(std::size_t gid, unsigned chain, unsigned lane) {
+  const float base = static_cast<float>(gid % 64u) * 0.001f + 0.001f;
+  return {std::fma(static_cast<float>(lane), 0.01f, base + static_cast<float>(chain) * 0.1f),
+          std::fma(static_cast<float>(lane), 0.001f, static_cast<float>(chain) * 0.01f + 0.001f)};
+}
+
 /// Work-item `gid`'s result: 12 chains x `lanes` lanes of `iters` FMAs a = a * c + b, summed chain by chain, then
-/// lane by lane (the kernel's order). `c` must be below 1 in magnitude.
+/// lane by lane (the kernel's order). `c` must be in (0, 1).
 inline float peak_host(std::size_t gid, unsigned iters, float c, unsigned lanes) {
   float s = 0.0f;
-  const float base = static_cast<float>(gid % 64u) * 0.001f;
   for (unsigned i = 0; i < 12; ++i)
     for (unsigned l = 0; l < lanes; ++l) {
-      float a = std::fma(static_cast<float>(l), 0.01f, base + static_cast<float>(i) * 0.1f);
-      const float b = std::fma(static_cast<float>(l), 0.001f, static_cast<float>(i) * 0.01f);
-      // The recurrence reaches a float fixed point after a few thousand steps (|c| < 1); from there on every
-      // step returns it unchanged, so a long calibration run need not be replayed step by step.
+      auto [a, b] = peak_chain(gid, i, l);
+      // The recurrence reaches a float fixed point after a few thousand steps; from there on every step returns
+      // it unchanged, so a long calibration run need not be replayed step by step.
       for (unsigned it = 0; it < iters; ++it) {
         const float next = std::fma(a, c, b);
         if (next == a) break;

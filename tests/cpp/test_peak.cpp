@@ -1,0 +1,50 @@
+// The calibrated FMA peak (kernels/peak.cl, relit/verify/peak_reference.hpp): its chains never become subnormal
+// (which would measure microcode assists instead of the FMA rate), and the kernel agrees with its host reference.
+#include "test_support.hpp"
+
+#include <relit/verify/peak_reference.hpp>
+
+#include <cmath>
+#include <limits>
+
+namespace relit {
+
+TEST(Peak, NoChainEverBecomesSubnormal) {
+  const float c = reference::PeakKernel::kFactor;
+  const float smallest_normal = std::numeric_limits<float>::min();
+  for (std::size_t gid = 0; gid < 64; ++gid)
+    for (unsigned chain = 0; chain < 12; ++chain)
+      for (unsigned lane = 0; lane < 16; ++lane) {
+        auto [a, b] = reference::peak_chain(gid, chain, lane);
+        ASSERT_GE(b, smallest_normal) << "item " << gid << ", chain " << chain << ", lane " << lane;
+        // Step to the float fixed point (a few thousand steps): every value on the way must be normal.
+        for (int step = 0; step < 1000000; ++step) {
+          ASSERT_TRUE(std::isnormal(a)) << "item " << gid << ", chain " << chain << ", lane " << lane << ", step "
+                                        << step << ": " << a;
+          const float next = std::fma(a, c, b);
+          if (next == a) break;
+          a = next;
+        }
+        EXPECT_EQ(std::fma(a, c, b), a) << "no fixed point: item " << gid << ", chain " << chain << ", lane " << lane;
+      }
+}
+
+TEST(Peak, KernelsMatchTheHostReferenceBeyondTheFixedPoint) {
+  const Device device = test::test_device();
+  for (const auto& [name, lanes] : {std::pair<std::string, unsigned>{"peak_fma_f16", 16}, {"peak_fma_f8", 8}}) {
+    const std::size_t items = 128;
+    Buffer<float> out(device, items);
+    reference::PeakKernel peak(device, name, lanes, items);
+    // 200,000 steps: past every chain's fixed point (2,000 at the smallest sizes: Oclgrind runs each FMA alone).
+    for (const std::uint32_t iters : {1u, 1000u, test::tiny_sizes() ? 2000u : 200000u}) {
+      peak.iters = iters;
+      out.fill(-1.0f);
+      peak.launch(device, out);
+      EXPECT_LE(peak.verify(out, items), 1.0) << name << ", " << iters << " steps";
+    }
+    out.fill(-1.0f);  // a result never written must fail the check
+    EXPECT_GT(peak.verify(out, items), 1.0) << name;
+  }
+}
+
+}  // namespace relit
