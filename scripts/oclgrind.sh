@@ -13,7 +13,7 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${RELIT_BUILD_DIR:-$root/build}"
 filter="FullyFusedMLP*:Enc*:SphericalHarmonics.*:VolumeRenderer*:Visibility.*:Loss.*:Adam.*:Columns.*:Rays.*"
-filter+=":Metrics.*:Flip.*:Environment*:PathTrace*"
+filter+=":Metrics.*:Flip.*:Environment*:PathTrace*:Peak.*"
 extra=()
 while [ $# -gt 0 ]; do
   case "$1" in
