@@ -151,7 +151,7 @@ reference::Mat rows_of(const std::vector<float>& row_major, std::uint32_t rows, 
 // each launch sized to run --peak-seconds (reference::PeakKernel says why a short launch under-reports).
 void add_peak(std::vector<Case>& cases, const Device& device, const BenchOptions& o) {
   const double target = o.peak_seconds > 0 ? o.peak_seconds : (o.quick ? 0.05 : 0.25);
-  for (const auto& [name, lanes] : {std::pair<std::string, unsigned>{"peak_fma_f16", 16}, {"peak_fma_f8", 8}}) {
+  for (const auto& [name, lanes] : reference::kPeakKernels) {
     const std::size_t items = std::size_t(std::max(1u, device.info().compute_units)) * 256;
     auto buf = std::make_shared<Buffer<float>>(device, items);
     auto peak = std::make_shared<reference::PeakKernel>(device, name, lanes, items);

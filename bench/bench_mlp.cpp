@@ -86,14 +86,14 @@ std::vector<PeakResult> measure_peak(const Device& device, const Options& o) {
   std::vector<PeakResult> out;
   const std::size_t items = o.smoke ? 64 : std::size_t(device.info().compute_units) * 256;
   Buffer<float> buf(device, items);
-  for (const auto& [name, lanes] : {std::pair<std::string, unsigned>{"peak_fma_f16", 16}, {"peak_fma_f8", 8}}) {
+  for (const auto& [name, lanes] : reference::kPeakKernels) {
     reference::PeakKernel peak(device, name, lanes, items);
     peak.calibrate(device, buf, o.smoke ? 0.005 : 0.25);
     peak.launch(device, buf);
-    verify(name + " result", peak.verify(buf));
+    verify(std::string(name) + " result", peak.verify(buf));
     const double t = median_time(o.smoke ? 1 : 5, [&] { peak.launch(device, buf); });
     out.push_back({name, peak.flops() / t * 1e-9});
-    std::printf("  %-14s %8.1f GFLOP/s (%.0f ms a launch)\n", name.c_str(), peak.flops() / t * 1e-9, t * 1e3);
+    std::printf("  %-14s %8.1f GFLOP/s (%.0f ms a launch)\n", name, peak.flops() / t * 1e-9, t * 1e3);
   }
   return out;
 }

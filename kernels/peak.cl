@@ -4,8 +4,8 @@
 // float16 (512-bit, or two 256-bit halves) or float8 (256-bit) vectors. The chains start from lane- and
 // item-varying values (splat data lets the compiler scalarise and fake a 2x peak), and every lane of every
 // chain is summed into the output, in a fixed order the host repeats to verify the result. Every chain starts
-// above 0 with b > 0, so none ever becomes subnormal (an FMA on subnormals is ~20x slower on Intel cores;
-// relit::reference::peak_chain, which sets the chains up the same way on the host).
+// above 0 with b > 0, so none ever becomes subnormal (every FMA on a subnormal takes a microcode assist on
+// Intel cores; relit::reference::peak_chain sets the chains up the same way on the host).
 #ifndef PEAK_CHAINS
 #define PEAK_CHAINS 12
 #endif

@@ -14,6 +14,14 @@
 
 namespace relit::reference {
 
+/// The peak kernels of kernels/peak.cl and their vector lanes; each work-item runs kPeakChains chains per lane.
+struct PeakKernelName {
+  const char* name;
+  unsigned lanes;
+};
+inline constexpr PeakKernelName kPeakKernels[] = {{"peak_fma_f16", 16}, {"peak_fma_f8", 8}};
+inline constexpr unsigned kPeakChains = 12;  ///< PEAK_CHAINS of kernels/peak.cl
+
 /// The start `a` and the constant term `b` of chain `chain`, lane `lane` of work-item `gid` (kernels/peak.cl sets
 /// its chains up the same way). Every chain starts above 0 and has b > 0, so it moves monotonically towards its
 /// fixed point b / (1 - c) >= 1 and never becomes subnormal: a chain with b = 0 decays towards 0 and, after
@@ -30,22 +38,28 @@ inline PeakChain peak_chain(std::size_t gid, unsigned chain, unsigned lane) {
           std::fma(static_cast<float>(lane), 0.001f, static_cast<float>(chain) * 0.01f + 0.001f)};
 }
 
-/// Work-item `gid`'s result: 12 chains x `lanes` lanes of `iters` FMAs a = a * c + b, summed chain by chain, then
-/// lane by lane (the kernel's order). `c` must be in (0, 1).
+/// Chain (a, b) after `iters` FMAs a = a * c + b, with `visit(a)` called on its start and on every value it
+/// takes. The recurrence reaches a float fixed point after a few thousand steps (0 < c < 1); from there on every
+/// step returns it unchanged, so the loop stops there and a long calibration run need not be replayed step by step.
+template <class Visit>
+float peak_steps(PeakChain chain, float c, unsigned iters, Visit visit) {
+  float a = chain.a;
+  visit(a);
+  for (unsigned it = 0; it < iters; ++it) {
+    const float next = std::fma(a, c, chain.b);
+    if (next == a) break;
+    a = next;
+    visit(a);
+  }
+  return a;
+}
+
+/// Work-item `gid`'s result: kPeakChains chains x `lanes` lanes of `iters` FMAs a = a * c + b, summed chain by
+/// chain, then lane by lane (the kernel's order). `c` must be in (0, 1).
 inline float peak_host(std::size_t gid, unsigned iters, float c, unsigned lanes) {
   float s = 0.0f;
-  for (unsigned i = 0; i < 12; ++i)
-    for (unsigned l = 0; l < lanes; ++l) {
-      auto [a, b] = peak_chain(gid, i, l);
-      // The recurrence reaches a float fixed point after a few thousand steps; from there on every step returns
-      // it unchanged, so a long calibration run need not be replayed step by step.
-      for (unsigned it = 0; it < iters; ++it) {
-        const float next = std::fma(a, c, b);
-        if (next == a) break;
-        a = next;
-      }
-      s += a;
-    }
+  for (unsigned i = 0; i < kPeakChains; ++i)
+    for (unsigned l = 0; l < lanes; ++l) s += peak_steps(peak_chain(gid, i, l), c, iters, [](float) {});
   return s;
 }
 
@@ -72,7 +86,7 @@ struct PeakKernel {
             std::max<std::size_t>(1, std::min(kernel.preferred_work_group_multiple(), kernel.max_work_group_size()))) {}
 
   /// FLOPs of one launch (an FMA counts 2).
-  double flops() const { return double(items) * 12 * lanes * 2 * iters; }
+  double flops() const { return double(items) * kPeakChains * lanes * 2 * iters; }
 
   /// One launch with `iters` steps into `out` (items floats), waiting for it; returns its seconds.
   double launch(const Device& device, Buffer<float>& out) {
