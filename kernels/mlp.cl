@@ -47,6 +47,20 @@
 
 MLP_DEFINE_ACTIVATIONS(float16, apply_act, act_grad)
 
+// The saved ReLU masks: bit s of a mask word is set where sample s of its tile has h > 0. The separate backward
+// kernel reads these 2 bytes per feature and tile instead of the saved activation's 64 (docs/networks.md): its
+// ReLU mask then comes from a contiguous run per work-item, not from one activation row per feature.
+// Layout: mask[(l * (padded / TILE) + tile) * WIDTH + feature] for the hidden layers l.
+#define LANE_BITS (int16)(1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384, 32768)
+
+inline ushort lane_mask(const int16 c) {  // c: -1 or 0 per lane (a float16 comparison)
+  const int16 b = c & LANE_BITS;
+  const int8 t8 = b.lo | b.hi;
+  const int4 t4 = t8.lo | t8.hi;
+  const int2 t2 = t4.lo | t4.hi;
+  return (ushort)(t2.x | t2.y);
+}
+
 inline float16 hidden_act(float16 z) {
 #if HIDDEN_ACT == ACT_RELU
   return fmax(z, 0.0f);
@@ -105,8 +119,9 @@ inline float16 hidden_act(float16 z) {
 // Forward. One work-item = FWD_T tiles of 16 samples; all layers in registers/private memory (per feature k
 // the FWD_T tiles' float16 values are adjacent: h[k * FWD_T + u]). With save != 0 the training workspace
 // `act` (feature-major: row f holds feature f of every sample, rows `padded` floats apart) receives the rows
-// [x (N_IN), ones, h_0 (WIDTH), ..., h_(N_HIDDEN-1)], h_l after the activation: the backward pass reads h_l,
-// and the weight-gradient kernel streams every row contiguously over the batch.
+// [x (N_IN), ones, h_0 (WIDTH), ..., h_(N_HIDDEN-1)], h_l after the activation, which the weight-gradient kernel
+// streams row by row contiguously over the batch; with a ReLU the backward pass reads only the masks h_l > 0,
+// saved into `mask` (above).
 // ---------------------------------------------------------------------------------------------------------
 
 #define SRC_X(k, u) vload16(0, xt[u] + (k)*TILE)
@@ -129,7 +144,11 @@ inline float16 hidden_act(float16 z) {
     _Pragma("unroll") for (uint r = 0; r < (NR); ++r) _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) { \
       const float16 y = hidden_act(acc[r][u]);                                                             \
       hout[((j0) + r) * HS + u] = y;                                                                       \
-      if (save) vstore16(y, 0, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);                         \
+      if (save) {                                                                                          \
+        vstore16(y, 0, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);                                 \
+        if (HIDDEN_ACT == ACT_RELU)                                                                        \
+          mask[((size_t)l * (padded / TILE) + tile[u]) * WIDTH + (j0) + r] = lane_mask(y > 0.0f);          \
+      }                                                                                                    \
     }                                                                                                      \
   }
 
@@ -145,7 +164,7 @@ inline float16 hidden_act(float16 z) {
 // n_items = ceil(n_tiles / FWD_T) work-items.
 __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const float* restrict params,
                           const uint param_offset, __global const float* restrict x, __global float* restrict y,
-                          __global float* restrict act, const uint save) {
+                          __global float* restrict act, const uint save, __global ushort* restrict mask) {
   const size_t item = get_global_id(0);
   if (item * FWD_T >= n_tiles) return;
   ITEM_TILES(tile, item, n_tiles)
@@ -201,24 +220,25 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 #define SRC_G(j, u) gin[(j)*HS + (u)]
 
 // NR inputs k0.. of dL/dh_(l-1) = W_l^T dZ_l, masked by the activation derivative of h_(l-1), into gout.
-// H(k, u): h_(l-1) of input k in tile u; SAVE(k, u, g) stores the result elsewhere too.
-#define BACK_MASKED_BLOCK(NR, k0, H, SAVE)                                                                 \
+// POS(k, u): int16, true in the lanes where h_(l-1) of input k in tile u is > 0 (used with a ReLU only);
+// SAVE(k, u, g) stores the result elsewhere too.
+#define BACK_MASKED_BLOCK(NR, k0, POS, SAVE)                                                               \
   {                                                                                                        \
     float16 acc[NR][FWD_T];                                                                                \
     INIT_ZERO(acc, NR)                                                                                     \
     ACCUM_T(acc, NR, SRC_G, nout, w, stride, k0)                                                           \
     _Pragma("unroll") for (uint r = 0; r < (NR); ++r) _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) { \
       float16 g = acc[r][u];                                                                               \
-      if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, H((k0) + r, u) > 0.0f);                     \
+      if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, POS((k0) + r, u));                          \
       gout[((k0) + r) * HS + u] = g;                                                                       \
       SAVE((k0) + r, u, g);                                                                                \
     }                                                                                                      \
   }
 
-// The separate backward kernel: h_(l-1) from the saved activations, dZ stored for the weight gradients.
-#define H_SAVED(k, u) vload16(0, at + (k) * (size_t)padded + tile[u] * TILE)
+// The separate backward kernel: h_(l-1) > 0 from the saved masks, dZ stored for the weight gradients.
+#define POS_SAVED(k, u) (((int16)(mk[u][k]) & LANE_BITS) != 0)
 #define SAVE_DZ(k, u, g) vstore16(g, 0, dzt + (k) * (size_t)padded + tile[u] * TILE)
-#define BACK_HIDDEN_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, H_SAVED, SAVE_DZ)
+#define BACK_HIDDEN_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, POS_SAVED, SAVE_DZ)
 
 // NR inputs k0.. of dL/dx from the input columns starting at column `xcol` of layer w (layer 0 or a skip).
 #define BACK_INPUT_BLOCK(NR, k0)                                                                           \
@@ -251,8 +271,8 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint batch,
                            __global const float* restrict params, const uint param_offset,
                            __global const float* restrict y, __global const float* restrict dy,
-                           __global const float* restrict act, __global float* restrict dz, __global float* restrict dx,
-                           const uint want_dx) {
+                           __global const ushort* restrict mask, __global float* restrict dz,
+                           __global float* restrict dx, const uint want_dx) {
   const size_t item = get_global_id(0);
   if (item * FWD_T >= n_tiles) return;
   ITEM_TILES(tile, item, n_tiles)
@@ -282,7 +302,9 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
     __global const float* w = p + layer_offset(l);
     __private const float16* gin = g[l & 1];
     __private float16* gout = g[(l + 1) & 1];
-    __global const float* at = act + (size_t)(ACT_H0 + (l - 1) * WIDTH) * padded;
+    __global const ushort* mk[FWD_T];
+#pragma unroll
+    for (uint u = 0; u < FWD_T; ++u) mk[u] = mask + ((size_t)(l - 1) * (padded / TILE) + tile[u]) * WIDTH;
     __global float* dzt = dz + (size_t)(l - 1) * WIDTH * padded;
     if (want_dx && ((((uint)(SKIP_MASK)) >> l) & 1u)) {
       const uint xcol = WIDTH;
@@ -444,9 +466,9 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 #define N_ROWS (ACT_H0 + N_HIDDEN * WIDTH)
 
 // The fused training kernel: h_(l-1) from the scratch rows (hprev), dZ kept in gout only.
-#define H_SCRATCH(k, u) hprev[(k)*HS + (u)]
+#define POS_SCRATCH(k, u) (hprev[(k)*HS + (u)] > 0.0f)
 #define SAVE_NONE(k, u, g)
-#define TRAIN_BACK_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, H_SCRATCH, SAVE_NONE)
+#define TRAIN_BACK_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, POS_SCRATCH, SAVE_NONE)
 
 // The FWD_T tiles of sub-group s of the group starting at tile tb: tile indices (clamped to the chunk), x
 // and dL/dx pointers (the sink for tiles past the chunk's end).
@@ -481,6 +503,7 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
   for (uint u = 0; u < TRAIN_G; ++u) rows[N_IN * TRAIN_G + u] = (float16)1.0f;
   const uint save = 0, padded = 0;  // the forward blocks keep their activations in the scratch only
   __global float* st = 0;
+  __global ushort* mask = 0;
 
   for (size_t tb = t_begin; tb < t_end; tb += TRAIN_G) {
     // The chunk's first group starts the accumulators from zero, its last one writes their lane sums to the

@@ -55,6 +55,8 @@ class MlpWorkspace final : public Workspace {
   // Feature-major (row f = feature f of every sample, `padded` floats per row): act holds the rows
   // [x (n_input), ones, h_0 (width), ..., h_(L-1)], dz the rows [dZ_0 (width), ..., dZ_(L-1), dZ_out].
   Buffer<float> act, dz, partial;
+  // The SIMD kernels' ReLU masks of the hidden layers (kernels/mlp.cl): [layer][tile][feature], bit s = sample s.
+  Buffer<std::uint16_t> mask;
   Buffer<float> scratch;  // the fused training kernel's per-chunk scratch
 };
 
@@ -391,7 +393,8 @@ std::unique_ptr<Workspace> FullyFusedMLP::make_workspace(const Device& device) c
 }
 
 void FullyFusedMLP::launch_forward(const Device& device, ConstParamSlice params, const BatchMatrix& input,
-                                   BatchMatrix& output, Buffer<float>* act, std::uint32_t act_padded) const {
+                                   BatchMatrix& output, Buffer<float>* act, std::uint32_t act_padded,
+                                   const Buffer<std::uint16_t>* mask) const {
   if (!params.buffer || params.offset + n_params() > params.buffer->size())
     throw InvalidArgument("FullyFusedMLP: the parameter slice (offset " + std::to_string(params.offset) +
                           ") does not hold the network's " + std::to_string(n_params()) + " parameters");
@@ -407,6 +410,7 @@ void FullyFusedMLP::launch_forward(const Device& device, ConstParamSlice params,
   kernel.args(k.workgroup ? n_tiles * kBatchTile : n_tiles, act_padded, *params.buffer,
               static_cast<std::uint32_t>(params.offset), input.data(), output.data(), act ? *act : output.data(),
               static_cast<std::uint32_t>(act ? 1 : 0));
+  if (!k.workgroup) kernel.arg(8, mask ? *mask : Buffer<std::uint16_t>());  // ReLU masks (empty: not saved)
   if (k.workgroup) {
     const std::size_t s = k.choice.workgroup.samples, groups = (std::size_t(n_tiles) * kBatchTile + s - 1) / s;
     kernel.launch(groups * k.local_forward, k.local_forward);
@@ -439,9 +443,11 @@ void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const 
     ws->padded = std::max(ws->padded, input.padded());
     ws->act = Buffer<float>(device, std::size_t(ws->padded) * (std::size_t(m_width) * m_n_hidden + m_n_input + 1));
     ws->dz = Buffer<float>(device, std::size_t(ws->padded) * (std::size_t(m_width) * m_n_hidden + m_n_output));
+    if (!kernels(device).workgroup && m_hidden_activation == Activation::ReLU)
+      ws->mask = Buffer<std::uint16_t>(device, std::size_t(ws->padded / kBatchTile) * m_width * m_n_hidden);
   }
   ws->saved = true;
-  launch_forward(device, params, input, output, &ws->act, ws->padded);
+  launch_forward(device, params, input, output, &ws->act, ws->padded, &ws->mask);
 }
 
 void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const BatchMatrix& input,
@@ -528,7 +534,7 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
   // 1. dZ of every layer (and dL/dx), one work-item per tile.
   Kernel bk = k.backward;
   bk.args(n_tiles, ws->padded, batch, *params.buffer, static_cast<std::uint32_t>(params.offset), output.data(),
-          d_output.data(), ws->act, ws->dz, d_input ? d_input->data() : ws->dz,
+          d_output.data(), ws->mask, ws->dz, d_input ? d_input->data() : ws->dz,
           static_cast<std::uint32_t>(d_input ? 1 : 0));
   bk.launch((n_tiles + k.blocking.forward_tiles - 1) / k.blocking.forward_tiles, k.local_backward);
 

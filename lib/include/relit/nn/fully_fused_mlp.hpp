@@ -176,7 +176,7 @@ class FullyFusedMLP final : public Network {
   const Kernels& kernels(const Device& device) const;
   KernelChoice choice_locked(const Device& device) const;  // before fitting the device, with m_mutex held
   void launch_forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
-                      Buffer<float>* act, std::uint32_t act_padded) const;
+                      Buffer<float>* act, std::uint32_t act_padded, const Buffer<std::uint16_t>* mask = nullptr) const;
   void check_input(const char* what, const BatchMatrix& input) const;
   void backward_workgroup(const Device& device, ConstParamSlice params, const BatchMatrix& output,
                           const BatchMatrix& d_output, ParamSlice grads, bool accumulate, BatchMatrix* d_input,
