@@ -50,7 +50,8 @@ MLP_DEFINE_ACTIVATIONS(float16, apply_act, act_grad)
 // The saved ReLU masks: bit s of a mask word is set where sample s of its tile has h > 0. The separate backward
 // kernel reads these 2 bytes per feature and tile instead of the saved activation's 64 (docs/networks.md): its
 // ReLU mask then comes from a contiguous run per work-item, not from one activation row per feature.
-// Layout: mask[(l * (padded / TILE) + tile) * WIDTH + feature] for the hidden layers l.
+// Layout: mask[(l * (padded / TILE) + tile) * WIDTH + feature] for the hidden layers l; MASK_ROW is a tile's row.
+#define MASK_ROW(mask, l, tile) ((mask) + ((size_t)(l) * (padded / TILE) + (tile)) * WIDTH)
 #define LANE_BITS (int16)(1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384, 32768)
 
 inline ushort lane_mask(const int16 c) {  // c: -1 or 0 per lane (a float16 comparison)
@@ -146,8 +147,7 @@ inline float16 hidden_act(float16 z) {
       hout[((j0) + r) * HS + u] = y;                                                                       \
       if (save) {                                                                                          \
         vstore16(y, 0, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);                                 \
-        if (HIDDEN_ACT == ACT_RELU)                                                                        \
-          mask[((size_t)l * (padded / TILE) + tile[u]) * WIDTH + (j0) + r] = lane_mask(y > 0.0f);          \
+        if (HIDDEN_ACT == ACT_RELU) MASK_ROW(mask, l, tile[u])[(j0) + r] = lane_mask(y > 0.0f);            \
       }                                                                                                    \
     }                                                                                                      \
   }
@@ -304,7 +304,7 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
     __private float16* gout = g[(l + 1) & 1];
     __global const ushort* mk[FWD_T];
 #pragma unroll
-    for (uint u = 0; u < FWD_T; ++u) mk[u] = mask + ((size_t)(l - 1) * (padded / TILE) + tile[u]) * WIDTH;
+    for (uint u = 0; u < FWD_T; ++u) mk[u] = MASK_ROW(mask, l - 1, tile[u]);
     __global float* dzt = dz + (size_t)(l - 1) * WIDTH * padded;
     if (want_dx && ((((uint)(SKIP_MASK)) >> l) & 1u)) {
       const uint xcol = WIDTH;
