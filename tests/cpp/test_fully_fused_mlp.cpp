@@ -345,6 +345,32 @@ TEST_P(MlpVariant, GradientsMatchCentralFiniteDifferences) {
 INSTANTIATE_TEST_SUITE_P(FullyFusedMLP, MlpVariant, ::testing::Values("auto", "simd", "workgroup"),
                          [](const auto& info) { return info.param; });
 
+// A workspace first used with the work-group kernels (which save no ReLU masks) and then, at the same batch,
+// with the SIMD kernels (which read them) gives the SIMD kernels' results of a fresh workspace.
+TEST(FullyFusedMLP, AWorkspaceFollowsAChangeOfKernelVariant) {
+  Small s;
+  const std::uint32_t batch = 300;
+  Buffer<float> pbuf(s.device, s.params);
+  BatchMatrix x(s.device, batch, 5), y(s.device, batch, 4), dy(s.device, batch, 4);
+  x.upload_row_major(random_vector(batch * 5, 1));
+  dy.upload_row_major(random_vector(batch * 4, 2));
+  auto grads = [&](Workspace& ws) {
+    Buffer<float> g(s.device, s.params.size());
+    s.net->forward(s.device, {&pbuf, 0}, x, y, ws);
+    s.net->backward(s.device, {&pbuf, 0}, x, y, dy, {&g, 0}, false, nullptr, ws);
+    return g.read();
+  };
+  auto reused = s.net->make_workspace(s.device);
+  s.net->set_workgroup(kWgOdd);
+  grads(*reused);
+  s.net->set_blocking(Blocking{});
+  const auto after_switch = grads(*reused);
+  auto fresh = s.net->make_workspace(s.device);
+  const auto expected = grads(*fresh);
+  ASSERT_EQ(after_switch.size(), expected.size());
+  EXPECT_EQ(std::memcmp(after_switch.data(), expected.data(), expected.size() * sizeof(float)), 0);
+}
+
 TEST(FullyFusedMLP, InitialisationIsDeterministicAndScaled) {
   Small a, b;
   std::vector<float> p1(a.net->n_params()), p2(a.net->n_params()), p3(a.net->n_params());

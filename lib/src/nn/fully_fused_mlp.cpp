@@ -443,9 +443,12 @@ void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const 
     ws->padded = std::max(ws->padded, input.padded());
     ws->act = Buffer<float>(device, std::size_t(ws->padded) * (std::size_t(m_width) * m_n_hidden + m_n_input + 1));
     ws->dz = Buffer<float>(device, std::size_t(ws->padded) * (std::size_t(m_width) * m_n_hidden + m_n_output));
-    if (!kernels(device).workgroup && m_hidden_activation == Activation::ReLU)
-      ws->mask = Buffer<std::uint16_t>(device, std::size_t(ws->padded / kBatchTile) * m_width * m_n_hidden);
   }
+  // The SIMD kernels' ReLU masks, laid out for ws->padded samples; sized apart from act and dz so that a workspace
+  // first used with the work-group kernels (which need none) gets them when the SIMD kernels take over.
+  const std::size_t mask_size = std::size_t(ws->padded / kBatchTile) * m_width * m_n_hidden;
+  if (!kernels(device).workgroup && m_hidden_activation == Activation::ReLU && ws->mask.size() != mask_size)
+    ws->mask = Buffer<std::uint16_t>(device, mask_size);
   ws->saved = true;
   launch_forward(device, params, input, output, &ws->act, ws->padded, &ws->mask);
 }
