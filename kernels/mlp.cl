@@ -83,18 +83,6 @@ inline float16 hidden_act(float16 z) {
     }                                                                                                   \
   }
 
-// acc[r][u] += sum_j w[j * stride + k0 + r] * SRC(j, u): the transposed product of the backward pass.
-#define ACCUM_T(acc, NR, SRC, J, w, stride, k0)                                                         \
-  for (uint j_ = 0; j_ < (uint)(J); ++j_) {                                                             \
-    float16 g_[FWD_T];                                                                                  \
-    _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) g_[u_] = SRC(j_, u_);                         \
-    __global const float* wr_ = (w) + j_ * (stride) + (k0);                                             \
-    _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                                              \
-      const float16 w_ = (float16)(wr_[r_]);                                                            \
-      _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) acc[r_][u_] = fma(w_, g_[u_], acc[r_][u_]); \
-    }                                                                                                   \
-  }
-
 #define INIT_BIAS(acc, NR, w, stride, j0, K)                                                \
   _Pragma("unroll") for (uint r_ = 0; r_ < (NR); ++r_) {                                    \
     const float16 b_ = BIAS ? (float16)((w)[((j0) + r_) * (stride) + (K)]) : (float16)0.0f; \
@@ -220,13 +208,16 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 #define SRC_G(j, u) gin[(j)*HS + (u)]
 
 // NR inputs k0.. of dL/dh_(l-1) = W_l^T dZ_l, masked by the activation derivative of h_(l-1), into gout.
+// The product streams rows of the layer's transposed block wt ([n_in + bias][nout], mlp_transpose_params)
+// as the forward pass streams rows of W: row k0 + r of W^T is contiguous, where column k0 + r of W would be
+// a load from a different cache line for every output j.
 // POS(k, u): int16, true in the lanes where h_(l-1) of input k in tile u is > 0 (used with a ReLU only);
 // SAVE(k, u, g) stores the result elsewhere too.
 #define BACK_MASKED_BLOCK(NR, k0, POS, SAVE)                                                               \
   {                                                                                                        \
     float16 acc[NR][FWD_T];                                                                                \
     INIT_ZERO(acc, NR)                                                                                     \
-    ACCUM_T(acc, NR, SRC_G, nout, w, stride, k0)                                                           \
+    ACCUM(acc, NR, SRC_G, nout, wt, nout, k0)                                                              \
     _Pragma("unroll") for (uint r = 0; r < (NR); ++r) _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) { \
       float16 g = acc[r][u];                                                                               \
       if (HIDDEN_ACT == ACT_RELU) g = select((float16)0.0f, g, POS((k0) + r, u));                          \
@@ -240,13 +231,14 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 #define SAVE_DZ(k, u, g) vstore16(g, 0, dzt + (k) * (size_t)padded + tile[u] * TILE)
 #define BACK_HIDDEN_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, POS_SAVED, SAVE_DZ)
 
-// NR inputs k0.. of dL/dx from the input columns starting at column `xcol` of layer w (layer 0 or a skip).
+// NR inputs k0.. of dL/dx from the input columns starting at column `xcol` of the layer (layer 0 or a skip),
+// rows xcol.. of its transposed block wt.
 #define BACK_INPUT_BLOCK(NR, k0)                                                                           \
   {                                                                                                        \
     float16 acc[NR][FWD_T];                                                                                \
     INIT_ZERO(acc, NR)                                                                                     \
-    __global const float* wx_ = w + xcol;                                                                  \
-    ACCUM_T(acc, NR, SRC_G, nout, wx_, stride, k0)                                                         \
+    __global const float* wx_ = wt + xcol * nout;                                                          \
+    ACCUM(acc, NR, SRC_G, nout, wx_, nout, k0)                                                             \
     /* all loads before the stores: a duplicated last tile (see ITEM_TILES) must not add twice */          \
     if (!first)                                                                                            \
       _Pragma("unroll") for (uint r = 0; r < (NR); ++r) _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u) \
@@ -267,16 +259,27 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 #define BACK_INPUT_TAIL
 #endif
 
+// The parameters with every layer's [n_out][n_in + bias] block transposed to [n_in + bias][n_out], at the
+// same offsets, for the backward passes (BACK_MASKED_BLOCK). One work-item per output row of a layer: ids
+// l * GMAX + j.
+__kernel void mlp_transpose_params(__global const float* restrict params, const uint param_offset,
+                                   __global float* restrict wt) {
+  const uint id = get_global_id(0), l = id / GMAX, j = id % GMAX;
+  if (l > N_HIDDEN || j >= LAYER_OUT(l)) return;
+  const uint nout = LAYER_OUT(l), stride = LAYER_STRIDE(l), off = layer_offset(l);
+  __global const float* row = params + param_offset + off + j * stride;
+  for (uint k = 0; k < stride; ++k) wt[off + k * nout + j] = row[k];
+}
+
 // n_items = ceil(n_tiles / FWD_T) work-items.
 __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint batch,
-                           __global const float* restrict params, const uint param_offset,
+                           __global const float* restrict wt_params,
                            __global const float* restrict y, __global const float* restrict dy,
                            __global const ushort* restrict mask, __global float* restrict dz,
                            __global float* restrict dx, const uint want_dx) {
   const size_t item = get_global_id(0);
   if (item * FWD_T >= n_tiles) return;
   ITEM_TILES(tile, item, n_tiles)
-  __global const float* p = params + param_offset;
   const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
 
   float16 g[2][GMAX * FWD_T];
@@ -298,8 +301,7 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
   for (uint u = 0; u < FWD_T; ++u) dxt[u] = dx + tile[u] * (size_t)(N_IN * TILE);
   for (uint l = N_HIDDEN; l >= 1; --l) {
     const uint nout = LAYER_OUT(l);
-    const uint stride = LAYER_STRIDE(l);
-    __global const float* w = p + layer_offset(l);
+    __global const float* wt = wt_params + layer_offset(l);
     __private const float16* gin = g[l & 1];
     __private float16* gout = g[(l + 1) & 1];
     __global const ushort* mk[FWD_T];
@@ -316,8 +318,8 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
 #endif
   }
   if (want_dx) {
-    const uint nout = WIDTH, stride = N_IN + BIAS, xcol = 0;
-    __global const float* w = p;
+    const uint nout = WIDTH, xcol = 0;
+    __global const float* wt = wt_params;
     __private const float16* gin = g[0];
     BACK_INPUT(TOP_SKIP == 0)
   }
@@ -485,6 +487,7 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 
 __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint chunk_tiles, const uint n_params,
                               __global const float* restrict params, const uint param_offset,
+                              __global const float* restrict wt_params,
                               __global const float* restrict x, __global const float* restrict y,
                               __global const float* restrict dy, __global float* restrict dx, const uint want_dx,
                               __global float* restrict scratch, const uint scratch_stride,
@@ -548,7 +551,7 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
       const uint nout = LAYER_OUT(l);
       const uint stride = LAYER_STRIDE(l);
       const uint lskip = l > 0 && ((((uint)(SKIP_MASK)) >> l) & 1u);
-      __global const float* w = p + layer_offset(l);
+      __global const float* wt = wt_params + layer_offset(l);
       // Input rows of layer l in the scratch: a_n activation rows from a_row, then from x_row (x and/or ones).
       const uint a_row = l == 0 ? 0 : ACT_H0 + (l - 1) * WIDTH, a_n = l == 0 ? 0 : WIDTH;
       const uint x_row = l == 0 || lskip ? 0 : N_IN;

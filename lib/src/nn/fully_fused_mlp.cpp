@@ -58,6 +58,9 @@ class MlpWorkspace final : public Workspace {
   // The SIMD kernels' ReLU masks of the hidden layers (kernels/mlp.cl): [layer][tile][feature], bit s = sample s.
   Buffer<std::uint16_t> mask;
   Buffer<float> scratch;  // the fused training kernel's per-chunk scratch
+  // The SIMD backward kernels' copy of the parameters with every layer's block transposed (kernels/mlp.cl,
+  // mlp_transpose_params), refreshed by every backward().
+  Buffer<float> wt;
 };
 
 }  // namespace
@@ -164,7 +167,7 @@ struct FullyFusedMLP::Kernels {
   KernelChoice choice;
   Blocking blocking;  // choice.blocking
   bool workgroup = false;
-  Kernel forward, backward, weight_grad, reduce, train;
+  Kernel forward, backward, weight_grad, reduce, train, transpose;  // transpose: the SIMD kernels only
   std::size_t local_forward = 0, local_backward = 0, local_weight_grad = 0, local_reduce = 0;
 };
 
@@ -362,6 +365,7 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
     k->weight_grad = program.kernel("mlp_weight_grad_partial");
     k->reduce = program.kernel("mlp_reduce_chunks");
     k->train = program.kernel("mlp_train_fused");
+    k->transpose = program.kernel("mlp_transpose_params");
     k->local_forward = local(k->forward);
     k->local_backward = local(k->backward);
     k->local_weight_grad = local(k->weight_grad);
@@ -492,6 +496,12 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
             static_cast<std::uint32_t>(accumulate ? 1 : 0));
     rk.launch((np + 7) / 8, k.local_reduce);
   };
+  if (!k.workgroup) {  // the backward kernels stream rows of W^T (kernels/mlp.cl, BACK_MASKED_BLOCK)
+    if (ws->wt.size() < np) ws->wt = Buffer<float>(device, np);
+    Kernel t = k.transpose;
+    t.args(*params.buffer, static_cast<std::uint32_t>(params.offset), ws->wt);
+    t.launch(std::size_t(m_n_hidden + 1) * std::max(m_width, m_n_output));
+  }
   if (fused_training(device)) {
     // Chunks of whole groups of TRAIN_G tiles, one work-item each (fixed for a given batch and device).
     const std::uint32_t t = k.blocking.train_group;
@@ -505,7 +515,8 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     if (ws->partial.size() < std::size_t(n_chunks) * np)
       ws->partial = Buffer<float>(device, std::size_t(n_chunks) * np);
     Kernel tk = k.train;
-    tk.args(n_tiles, batch, chunk_tiles, np, *params.buffer, static_cast<std::uint32_t>(params.offset), input.data(),
+    tk.args(n_tiles, batch, chunk_tiles, np, *params.buffer, static_cast<std::uint32_t>(params.offset), ws->wt,
+            input.data(),
             output.data(), d_output.data(), d_input ? d_input->data() : ws->scratch,
             static_cast<std::uint32_t>(d_input ? 1 : 0), ws->scratch, static_cast<std::uint32_t>(stride), ws->partial,
             np);
@@ -536,9 +547,8 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
 
   // 1. dZ of every layer (and dL/dx), one work-item per tile.
   Kernel bk = k.backward;
-  bk.args(n_tiles, ws->padded, batch, *params.buffer, static_cast<std::uint32_t>(params.offset), output.data(),
-          d_output.data(), ws->mask, ws->dz, d_input ? d_input->data() : ws->dz,
-          static_cast<std::uint32_t>(d_input ? 1 : 0));
+  bk.args(n_tiles, ws->padded, batch, ws->wt, output.data(), d_output.data(), ws->mask, ws->dz,
+          d_input ? d_input->data() : ws->dz, static_cast<std::uint32_t>(d_input ? 1 : 0));
   bk.launch((n_tiles + k.blocking.forward_tiles - 1) / k.blocking.forward_tiles, k.local_backward);
 
   // 2. Per-chunk partial weight gradients, layer by layer, into one [chunk][param] buffer.
