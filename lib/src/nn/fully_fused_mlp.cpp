@@ -516,8 +516,7 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
       ws->partial = Buffer<float>(device, std::size_t(n_chunks) * np);
     Kernel tk = k.train;
     tk.args(n_tiles, batch, chunk_tiles, np, *params.buffer, static_cast<std::uint32_t>(params.offset), ws->wt,
-            input.data(),
-            output.data(), d_output.data(), d_input ? d_input->data() : ws->scratch,
+            input.data(), output.data(), d_output.data(), d_input ? d_input->data() : ws->scratch,
             static_cast<std::uint32_t>(d_input ? 1 : 0), ws->scratch, static_cast<std::uint32_t>(stride), ws->partial,
             np);
     tk.launch(n_chunks, 1);
