@@ -273,10 +273,9 @@ __kernel void mlp_transpose_params(__global const float* restrict params, const 
 
 // n_items = ceil(n_tiles / FWD_T) work-items.
 __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint batch,
-                           __global const float* restrict wt_params,
-                           __global const float* restrict y, __global const float* restrict dy,
-                           __global const ushort* restrict mask, __global float* restrict dz,
-                           __global float* restrict dx, const uint want_dx) {
+                           __global const float* restrict wt_params, __global const float* restrict y,
+                           __global const float* restrict dy, __global const ushort* restrict mask,
+                           __global float* restrict dz, __global float* restrict dx, const uint want_dx) {
   const size_t item = get_global_id(0);
   if (item * FWD_T >= n_tiles) return;
   ITEM_TILES(tile, item, n_tiles)
@@ -487,11 +486,10 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 
 __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint chunk_tiles, const uint n_params,
                               __global const float* restrict params, const uint param_offset,
-                              __global const float* restrict wt_params,
-                              __global const float* restrict x, __global const float* restrict y,
-                              __global const float* restrict dy, __global float* restrict dx, const uint want_dx,
-                              __global float* restrict scratch, const uint scratch_stride,
-                              __global float* restrict partial, const uint partial_stride) {
+                              __global const float* restrict wt_params, __global const float* restrict x,
+                              __global const float* restrict y, __global const float* restrict dy,
+                              __global float* restrict dx, const uint want_dx, __global float* restrict scratch,
+                              const uint scratch_stride, __global float* restrict partial, const uint partial_stride) {
   const size_t c = get_global_id(0);
   const size_t t_begin = c * chunk_tiles;
   if (t_begin >= n_tiles) return;
