@@ -610,6 +610,10 @@ int main(int argc, char** argv) {
       for (const auto& s : specs)
         if (o.variants.find('w') == std::string::npos || o.wants(s.width >= 256 ? "w256" : "w64"))
           tune_net(device, s, o, peak);
+      if (g_failures) {
+        std::fflush(stdout);
+        std::fprintf(stderr, "bench_mlp: %d verification(s) failed\n", g_failures);
+      }
       return g_failures ? 1 : 0;
     }
     std::vector<NetResult> results;
@@ -652,10 +656,12 @@ int main(int argc, char** argv) {
     }
     if (!o.json.empty()) relit::io::write_file_atomic(o.json, j.dump(2) + "\n");
     if (g_failures) {
+      std::fflush(stdout);  // the tables first, then the verdict, when both go to one file or pipe
       std::fprintf(stderr, "bench_mlp: %d verification(s) failed\n", g_failures);
       return 1;
     }
   } catch (const std::exception& e) {
+    std::fflush(stdout);  // what ran before the error, then the error
     std::fprintf(stderr, "bench_mlp: %s\n", e.what());
     return 1;
   }
