@@ -74,6 +74,15 @@ void verify(const std::string& what, double worst) {
   if (!ok) ++g_failures;
 }
 
+// The exit status: 1 and a message after the tables (stdout flushed first, so that a shared file or pipe keeps
+// the order) if any verification failed.
+int verdict() {
+  if (!g_failures) return 0;
+  std::fflush(stdout);
+  std::fprintf(stderr, "bench_mlp: %d verification(s) failed\n", g_failures);
+  return 1;
+}
+
 // ------------------------------------------------------------------------------------------------------
 // Peak: kernels/peak.cl
 // ------------------------------------------------------------------------------------------------------
@@ -610,11 +619,7 @@ int main(int argc, char** argv) {
       for (const auto& s : specs)
         if (o.variants.find('w') == std::string::npos || o.wants(s.width >= 256 ? "w256" : "w64"))
           tune_net(device, s, o, peak);
-      if (g_failures) {
-        std::fflush(stdout);
-        std::fprintf(stderr, "bench_mlp: %d verification(s) failed\n", g_failures);
-      }
-      return g_failures ? 1 : 0;
+      return verdict();
     }
     std::vector<NetResult> results;
     for (const auto& s : specs) results.push_back(bench_net(device, s, o));
@@ -655,11 +660,7 @@ int main(int argc, char** argv) {
       j["nets"].push_back(jn);
     }
     if (!o.json.empty()) relit::io::write_file_atomic(o.json, j.dump(2) + "\n");
-    if (g_failures) {
-      std::fflush(stdout);  // the tables first, then the verdict, when both go to one file or pipe
-      std::fprintf(stderr, "bench_mlp: %d verification(s) failed\n", g_failures);
-      return 1;
-    }
+    return verdict();
   } catch (const std::exception& e) {
     std::fflush(stdout);  // what ran before the error, then the error
     std::fprintf(stderr, "bench_mlp: %s\n", e.what());
