@@ -422,6 +422,132 @@ __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len
   }
 }
 
+#if DW_VEC == 1
+// ---------------------------------------------------------------------------------------------------------
+// Weight gradients of one layer, outer-product form (DW_VEC == 1): the partials of mlp_weight_grad_partial,
+// from accumulators whose 16 lanes are 16 dW columns (inputs) of one row, one sample per FMA:
+//
+//   acc[i][r] += dz[j0 + i][s] (broadcast)  *  in^T[s][16 (v0 + r) .. + 15]      (DW_RK loads, DW_RJ broadcasts)
+//
+// A block's accumulators are dW entries, not lane partial sums: no horizontal sums, so the samples can be
+// walked in short blocks of `sub`, whose DW_RJ dZ row pieces stay in L1 while every column block reuses
+// them, and the accumulators are added to the work-item's copy of its dW rows (`cbuf`, rows padded to
+// NV x 16 floats) after each block. The lane form must keep its blocks long to amortise its horizontal sums,
+// and its DW_RJ dZ rows of a sub-chunk (32 KiB at 8 rows of 1 KiB samples) then compete for L1 with the
+// input rows it streams. Per block the input rows are transposed into the scratch, 16 x 16 at a time:
+//
+//   pack [v][s][0..15] = in[16 v + 0 .. 16 v + 15][s]      (NV = ceil(n_in / 16) column vectors, zero past n_in)
+//
+// The chunk's last block writes the work-item's dW rows into its partial slot.
+//
+// scratch (per work-item, scratch_stride floats apart, 64-byte aligned):
+//   cbuf  DW_ROWS x cstride   the work-item's dW rows, cstride = NV x 16 (a multiple of 16)
+//   pack  NV x sub x 16       the transposed input rows of the current block of samples
+// ---------------------------------------------------------------------------------------------------------
+
+// One stage of the 16 x 16 transpose: the perfect shuffle of the pairs (r[i], r[i + 8]). Element (vector v,
+// lane l) moves to the position whose 8 bits (v, l) are those of (v, l) rotated left by one, so four stages
+// swap v and l.
+#define SHUFFLE_LO(a, b) \
+  (float16)(a.s0, b.s0, a.s1, b.s1, a.s2, b.s2, a.s3, b.s3, a.s4, b.s4, a.s5, b.s5, a.s6, b.s6, a.s7, b.s7)
+#define SHUFFLE_HI(a, b) \
+  (float16)(a.s8, b.s8, a.s9, b.s9, a.sa, b.sa, a.sb, b.sb, a.sc, b.sc, a.sd, b.sd, a.se, b.se, a.sf, b.sf)
+
+inline void transpose16(float16* r) {
+#pragma unroll
+  for (uint stage = 0; stage < 4; ++stage) {
+    float16 t[16];
+#pragma unroll
+    for (uint i = 0; i < 8; ++i) {
+      t[2 * i] = SHUFFLE_LO(r[i], r[i + 8]);
+      t[2 * i + 1] = SHUFFLE_HI(r[i], r[i + 8]);
+    }
+#pragma unroll
+    for (uint i = 0; i < 16; ++i) r[i] = t[i];
+  }
+}
+
+// The DW_RJ x NRK block of rows j0.. and column vectors v0.. over the current block of len samples.
+#define DW_OUTER_BLOCK(NRK, v0)                                                                                       \
+  {                                                                                                                   \
+    __global float* cb_ = cbuf + (size_t)(j0 - jr0) * cstride + (v0)*16;                                              \
+    __global const float16* px_ = packed + (size_t)(v0)*sub;                                                          \
+    float16 acc[DW_RJ][NRK];                                                                                          \
+    _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) acc[i][r] = \
+        first ? (float16)0.0f : vload16(0, cb_ + i * cstride + r * 16);                                               \
+    for (uint s = 0; s < len; ++s) {                                                                                  \
+      float16 xv[NRK];                                                                                                \
+      _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) xv[r] = px_[r * sub + s];                                    \
+      _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) {                                                            \
+        const float16 d = (float16)(dzp[i][s]);                                                                       \
+        _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);                      \
+      }                                                                                                               \
+    }                                                                                                                 \
+    _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) _Pragma("unroll") for (uint r = 0; r < (NRK); ++r)             \
+        vstore16(acc[i][r], 0, cb_ + i * cstride + r * 16);                                                           \
+  }
+
+__kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, const uint n_chunks, const uint sub,
+                                    const uint padded, __global const float* restrict dz, const uint dz_row,
+                                    const uint n_out, __global const float* restrict act, const uint a_row,
+                                    const uint a_n, const uint x_row, const uint x_n, __global float* restrict partial,
+                                    const uint partial_stride, const uint layer_off, __global float* restrict scratch,
+                                    const uint scratch_stride) {
+  const uint n_in = a_n + x_n, nv = (n_in + 15) / 16, cstride = nv * 16;
+  const uint regions = (n_out + DW_ROWS - 1) / DW_ROWS;
+  const size_t gid = get_global_id(0);
+  if (gid >= (size_t)n_chunks * regions) return;
+  const uint c = gid / regions;
+  const uint jr0 = (gid % regions) * DW_ROWS, jr1 = min(jr0 + DW_ROWS, n_out);
+  const uint s0 = c * chunk_len, s1 = min(s0 + chunk_len, n_samples);
+  __global float* out = partial + (size_t)c * partial_stride + layer_off;
+  __global const float* dzl = dz + (size_t)dz_row * padded;
+  __global float* cbuf = scratch + gid * scratch_stride;
+  __global float16* packed = (__global float16*)(cbuf + (size_t)DW_ROWS * cstride);
+
+  for (uint ss = s0; ss < s1; ss += sub) {
+    const uint len = min(sub, s1 - ss);  // a multiple of 16, like chunk_len and n_samples
+    const bool first = ss == s0;
+    for (uint v = 0; v < nv; ++v)
+      for (uint t = 0; t < len; t += 16) {
+        float16 r[16];
+#pragma unroll
+        for (uint i = 0; i < 16; ++i) {
+          const uint k = v * 16 + i;
+          const uint row = k < a_n ? a_row + k : x_row + (k - a_n);
+          r[i] = k < n_in ? vload16(0, act + (size_t)row * padded + ss + t) : (float16)0.0f;
+        }
+        transpose16(r);
+#pragma unroll
+        for (uint i = 0; i < 16; ++i) packed[(size_t)v * sub + t + i] = r[i];
+      }
+    for (uint j0 = jr0; j0 < jr1; j0 += DW_RJ) {
+      // Rows past the end repeat the last one; cbuf has room for them (DW_ROWS is a multiple of DW_RJ) and they
+      // are never written out.
+      __global const float* dzp[DW_RJ];
+#pragma unroll
+      for (uint i = 0; i < DW_RJ; ++i) dzp[i] = dzl + (size_t)min(j0 + i, jr1 - 1) * padded + ss;
+      uint v0 = 0;
+      for (; v0 + DW_RK <= nv; v0 += DW_RK) DW_OUTER_BLOCK(DW_RK, v0)
+#if DW_RK > 1
+      switch (nv - v0) {  // the last column vectors
+#if DW_RK > 3
+        case 3: DW_OUTER_BLOCK(3, v0) break;
+#endif
+#if DW_RK > 2
+        case 2: DW_OUTER_BLOCK(2, v0) break;
+#endif
+        case 1: DW_OUTER_BLOCK(1, v0) break;
+        default: break;
+      }
+#endif
+    }
+  }
+  for (uint j = jr0; j < jr1; ++j)
+    for (uint k = 0; k < n_in; ++k) out[j * n_in + k] = cbuf[(size_t)(j - jr0) * cstride + k];
+}
+#endif
+
 // grads[i] (+)= sum_c partial[c * partial_stride + i], chunks added in order; 8 parameters per work-item.
 __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global const float* restrict partial,
                                 const uint partial_stride, __global float* restrict grads, const uint grad_offset,

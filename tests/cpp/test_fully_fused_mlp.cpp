@@ -121,7 +121,9 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
   // The device's choice, and kernels that every device must run alike. The SIMD variant with the AVX2/GPU and
   // AVX-512 register blockings and odd sizes (3 tiles per work-item, blocks that do not divide the widths),
   // each with the separate backward kernels and with the fused training kernel (forced for every network
-  // size); the work-group variant with the NVIDIA row's parameters and odd ones (kWgOdd).
+  // size), and the outer-product weight gradients (dw_vector 1) with the Intel row's blocks and odd ones (every
+  // count of last column vectors, rows that do not divide the layers, several row regions); the work-group
+  // variant with the NVIDIA row's parameters and odd ones (kWgOdd).
   constexpr std::uint32_t kAlways = 1u << 30;
   struct Kernels {
     std::optional<Blocking> blocking;
@@ -134,6 +136,9 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
                                    {Blocking{3, 5, 3, 16, 3, 5, 9, 0, 6}, {}},
                                    {Blocking{3, 5, 3, 16, 3, 5, 9, kAlways, 3}, {}},
                                    {Blocking{1, 4, 4, 8, 4, 3, 16, kAlways, 5}, {}},
+                                   {Blocking{4, 6, 6, 1, 8, 3, 256, 0}, {}},
+                                   {Blocking{2, 5, 3, 1, 3, 2, 9, 0}, {}},
+                                   {Blocking{1, 4, 4, 1, 5, 4, 10, 0}, {}},
                                    {{}, kWgNvidia},
                                    {{}, kWgOdd}};
   // PoCL builds each work-group program of the 256-wide network for minutes on 2 cores: there the odd sizes only.
@@ -190,6 +195,42 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
       EXPECT_TRUE(std::isnan(g[offset - 1]) && std::isnan(g[offset + np])) << "wrote outside its gradient slice";
       EXPECT_LE(worst_ratio(dx.download_row_major(), flatten(b.want_dx), 1e-4), 1.0) << "dL/dinput";
     }
+  }
+}
+
+// The outer-product weight gradients walk a chunk of the batch in blocks of 512 samples and add each block to
+// the work-item's dW rows: a batch whose chunks hold a full and a partial block (600 samples per chunk on any
+// device: the backward pass cuts the batch into 8 chunks per compute unit).
+TEST(FullyFusedMLP, OuterProductGradientsAddUpSeveralBlocksOfSamples) {
+  const Device device = test::test_device();
+  for (const Blocking& blocking : {Blocking{4, 6, 6, 1, 8, 3, 256, 0}, Blocking{2, 5, 3, 1, 3, 2, 9, 0}}) {
+    // Linear hidden layers: over thousands of samples some ReLU input would lie within float rounding of zero,
+    // where the double reference may take the other side of the kink.
+    auto net =
+        make_mlp({{"n_neurons", 16}, {"n_hidden_layers", 2}, {"skip_layers", {1}}, {"activation", "None"}}, 7, 3);
+    net->set_blocking(blocking);
+    std::vector<float> params(net->n_params());
+    net->initialize_params(params.data(), 11);
+    const auto r = random_vector(params.size(), 12, -0.2f, 0.2f);
+    for (std::size_t i = 0; i < params.size(); ++i) params[i] += r[i];
+    const std::uint32_t batch = 600 * 8 * std::max(1u, device.info().compute_units);
+    const auto xh = random_vector(std::size_t(batch) * 7, 13), dyh = random_vector(std::size_t(batch) * 3, 14);
+    Reference ref(*net, params, 0);
+    std::vector<double> want_dp;
+    Mat want_dx;
+    const Mat xm = to_mat(xh, batch, 7);
+    ref.forward(xm);
+    ref.backward(xm, to_mat(dyh, batch, 3), want_dp, want_dx);
+
+    Buffer<float> pbuf(device, params), gbuf(device, params.size());
+    BatchMatrix x(device, batch, 7), y(device, batch, 3), dy(device, batch, 3);
+    x.upload_row_major(xh);
+    dy.upload_row_major(dyh);
+    auto ws = net->make_workspace(device);
+    net->forward(device, {&pbuf, 0}, x, y, *ws);
+    net->backward(device, {&pbuf, 0}, x, y, dy, {&gbuf, 0}, false, nullptr, *ws);
+    EXPECT_FALSE(net->fused_training(device));
+    EXPECT_LE(worst_ratio(gbuf.read(), want_dp, 1e-4), 1.0) << blocking.str();
   }
 }
 
@@ -455,6 +496,7 @@ TEST(FullyFusedMLP, BlockingFollowsTheDevice) {
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{0, 4, 4, 8, 4, 3, 16}), InvalidArgument);
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 12, 4, 3, 16}), InvalidArgument);
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 10}), InvalidArgument);
+  EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 1, 4, 5, 16}), InvalidArgument);
   const FullyFusedMLP::Blocking odd{3, 5, 3, 16, 3, 5, 9, 0, 9};
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{2, 4, 4, 8, 4, 3, 16, 0, 5}), InvalidArgument);
   s.net->set_blocking(odd);

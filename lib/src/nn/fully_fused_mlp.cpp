@@ -29,6 +29,7 @@ constexpr std::size_t kChunksPerComputeUnit = 8;
 constexpr std::size_t kSubChunkBytes = 1024 * 1024;
 constexpr std::size_t kMinSubChunk = 128, kMaxSubChunk = 2048;  // samples
 constexpr std::size_t kMaxPartialFloats = std::size_t(1) << 23;
+constexpr std::uint32_t kOuterBlock = 512;  // samples per block of the outer-product weight gradients
 
 // splitmix64: a fixed, portable generator (std:: distributions differ between standard libraries).
 struct SplitMix {
@@ -100,7 +101,8 @@ void FullyFusedMLP::set_blocking(std::optional<Blocking> blocking) {
     check(b.forward_tiles >= 1 && b.forward_tiles <= 4, "forward_tiles must be in [1, 4]");
     check(b.forward_rows >= 1 && b.forward_rows <= 16, "forward_rows must be in [1, 16]");
     check(b.backward_rows >= 1 && b.backward_rows <= 16, "backward_rows must be in [1, 16]");
-    check(b.dw_vector == 8 || b.dw_vector == 16, "dw_vector must be 8 or 16");
+    check(b.dw_vector == 1 || b.dw_vector == 8 || b.dw_vector == 16, "dw_vector must be 1, 8 or 16");
+    check(b.dw_vector != 1 || b.dw_cols <= 4, "dw_cols must be at most 4 with dw_vector 1");
     check(b.dw_rows >= 1 && b.dw_rows <= 8 && b.dw_cols >= 1 && b.dw_cols <= 8, "dw_rows, dw_cols must be in [1, 8]");
     check(b.dw_region >= b.dw_rows && b.dw_region % b.dw_rows == 0, "dw_region must be a multiple of dw_rows");
     check(b.train_group >= b.forward_tiles && b.train_group <= 64 && b.train_group % b.forward_tiles == 0,
@@ -362,7 +364,7 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
     const Program program = device.program("mlp.cl", defines);
     k->forward = program.kernel("mlp_forward");
     k->backward = program.kernel("mlp_backward");
-    k->weight_grad = program.kernel("mlp_weight_grad_partial");
+    k->weight_grad = program.kernel(b.dw_vector == 1 ? "mlp_weight_grad_outer" : "mlp_weight_grad_partial");
     k->reduce = program.kernel("mlp_reduce_chunks");
     k->train = program.kernel("mlp_train_fused");
     k->transpose = program.kernel("mlp_transpose_params");
@@ -543,6 +545,19 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
       kBatchTile * kBatchTile);
   if (ws->partial.size() < std::size_t(plan.n_chunks) * np)
     ws->partial = Buffer<float>(device, std::size_t(plan.n_chunks) * np);
+  // The outer-product form (dw_vector 1): per work-item its dW rows and the transposed input rows of one block
+  // of plan.sub samples (kernels/mlp.cl, mlp_weight_grad_outer).
+  const bool outer = k.blocking.dw_vector == 1;
+  std::uint32_t dw_stride = 0;
+  std::size_t dw_items = 0;
+  if (outer) {
+    plan.sub = kOuterBlock;
+    const std::size_t cstride = round_up(max_in, 16);
+    dw_stride = static_cast<std::uint32_t>(round_up(k.blocking.dw_region * cstride + cstride * plan.sub, 16));
+    const std::uint32_t max_out = std::max(m_width, m_n_output);
+    dw_items = std::size_t(plan.n_chunks) * ((max_out + k.blocking.dw_region - 1) / k.blocking.dw_region);
+    if (ws->scratch.size() < dw_items * dw_stride) ws->scratch = Buffer<float>(device, dw_items * dw_stride);
+  }
 
   // 1. dZ of every layer (and dL/dx), one work-item per tile.
   Kernel bk = k.backward;
@@ -560,6 +575,7 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     const std::uint32_t x_n = (l == 0 || has_skip(l) ? m_n_input : 0) + (m_bias ? 1 : 0);
     wk.args(plan.n_samples, plan.chunk_len, plan.n_chunks, plan.sub, ws->padded, ws->dz, l * m_width, n_out, ws->act,
             l == 0 ? 0u : m_n_input + 1 + (l - 1) * m_width, a_n, x_row, x_n, ws->partial, np, layer_offset(l));
+    if (outer) wk.arg(16, ws->scratch).arg(17, dw_stride);
     // Few, long work-items: keep at least ~4 work-groups per compute unit for load balance.
     const std::size_t items = std::size_t(plan.n_chunks) * regions;
     std::size_t local = k.local_weight_grad;

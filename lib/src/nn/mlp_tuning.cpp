@@ -45,12 +45,17 @@ struct Row {
 //    on a quiet 2-core Zen 5, docs/networks.md.
 constexpr Blocking kAvx2{};
 constexpr Blocking kAvx512{4, 6, 6, 16, 8, 3, 24, 16384, 16};
-//  - Intel AVX-512 CPUs: the same blocks, but a weight-gradient work-item owns all 256 rows of a layer (not 24):
-//    its chunk's input rows (4.9 MB at width 256) are then read from memory once per sub-chunk and from L2 for
-//    every row block, not re-read from memory by the 11 work-items of each chunk. On a 2-core Intel Xeon
-//    (AVX-512, 2 MB L2 per core) the width-256 training step took 832-860 ms against 915-922 with 24 rows,
-//    alternated in one bench_mlp run (docs/networks.md); the width-64 net (fused training) does not change.
-constexpr Blocking kAvx512Intel{4, 6, 6, 16, 8, 3, 256, 16384, 16};
+//  - Intel AVX-512 CPUs: the same forward and backward blocks, but a weight-gradient work-item owns all 256 rows
+//    of a layer (not 24): its chunk's input rows (4.9 MB at width 256) are then read from memory once and
+//    from L2 for every row block, not re-read from memory by the 11 work-items of each chunk (832-860 ms
+//    against 915-922 for the width-256 training step with 24 rows). And the weight gradients in the
+//    outer-product form (dw_vector 1), 8 rows x 3 vectors of 16 columns: the lane form's 8 dZ rows of a
+//    sub-chunk did not stay in L1 beside the input rows it streams from L2; the outer form's blocks of 512
+//    samples keep them there and need no horizontal sums. Its weight-gradient kernel took 1.02-1.07x the
+//    backward kernel's time in perf samples, against 1.35x for the lane form, and the width-256 training step
+//    1028-1060 ms against 1105-1175 (alternated, docs/benchmarks.md). On a 2-core Intel Xeon (AVX-512, 2 MB L2
+//    per core); the width-64 net (fused training) does not change.
+constexpr Blocking kAvx512Intel{4, 6, 6, 1, 8, 3, 256, 16384, 16};
 
 // Work-group parameters: samples, items, rows x cols register block, k_tile, dW tile / block / samples, dW
 // chunk.

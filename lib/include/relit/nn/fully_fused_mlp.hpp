@@ -97,10 +97,13 @@ class FullyFusedMLP final : public Network {
     std::uint32_t forward_tiles = 1;  ///< FWD_T: 16-sample tiles per work-item (forward and backward), 1..4
     std::uint32_t forward_rows = 4;   ///< FWD_R: outputs per register block of the forward pass, 1..16
     std::uint32_t backward_rows = 4;  ///< BWD_R: inputs per register block of the backward pass, 1..16
-    std::uint32_t dw_vector = 8;      ///< DW_VEC: samples per weight-gradient accumulator, 8 or 16
-    std::uint32_t dw_rows = 4;        ///< DW_RJ: dW rows per register block, 1..8
-    std::uint32_t dw_cols = 3;        ///< DW_RK: dW columns per register block, 1..8
-    std::uint32_t dw_region = 16;     ///< DW_ROWS: dW rows per work-item, a multiple of dw_rows
+    /// DW_VEC: samples per weight-gradient accumulator: 8 or 16 (its lanes are samples, summed at the end), or
+    /// 1: the outer-product form, whose lanes are 16 dW columns of one row (mlp_weight_grad_outer, dw_cols of
+    /// them per block, at most 4)
+    std::uint32_t dw_vector = 8;
+    std::uint32_t dw_rows = 4;     ///< DW_RJ: dW rows per register block, 1..8
+    std::uint32_t dw_cols = 3;     ///< DW_RK: dW columns (dw_vector 1: vectors of 16) per register block, 1..8
+    std::uint32_t dw_region = 16;  ///< DW_ROWS: dW rows per work-item, a multiple of dw_rows
     /// The fused training kernel (mlp_train_fused: one work-item per batch chunk, forward recomputed, float16
     /// dW accumulators for every parameter in the work-item's scratch) runs backward() when the network has at
     /// most this many parameters; 0: never (the separate backward and weight-gradient kernels). For CPUs,
