@@ -359,6 +359,18 @@ typedef float8 dw_vec;
 #define dw_sum relit_sum8
 #endif
 
+// The weight-gradient kernels' work-item: chunk c of the batch (samples s0 .. s1) and the region of dW rows
+// jr0 .. jr1, its partial rows `out` and the layer's dZ rows `dzl`; past the last work-item it returns.
+#define DW_WORK_ITEM                                                           \
+  const uint regions = (n_out + DW_ROWS - 1) / DW_ROWS;                        \
+  const size_t gid = get_global_id(0);                                         \
+  if (gid >= (size_t)n_chunks * regions) return;                               \
+  const uint c = gid / regions;                                                \
+  const uint jr0 = (gid % regions) * DW_ROWS, jr1 = min(jr0 + DW_ROWS, n_out); \
+  const uint s0 = c * chunk_len, s1 = min(s0 + chunk_len, n_samples);          \
+  __global float* out = partial + (size_t)c * partial_stride + layer_off;      \
+  __global const float* dzl = dz + (size_t)dz_row * padded;
+
 __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len, const uint n_chunks, const uint sub,
                                       const uint padded, __global const float* restrict dz, const uint dz_row,
                                       const uint n_out, __global const float* restrict act, const uint a_row,
@@ -366,14 +378,7 @@ __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len
                                       __global float* restrict partial, const uint partial_stride,
                                       const uint layer_off) {
   const uint n_in = a_n + x_n;
-  const uint regions = (n_out + DW_ROWS - 1) / DW_ROWS;
-  const size_t gid = get_global_id(0);
-  if (gid >= (size_t)n_chunks * regions) return;
-  const uint c = gid / regions;
-  const uint jr0 = (gid % regions) * DW_ROWS, jr1 = min(jr0 + DW_ROWS, n_out);
-  const uint s0 = c * chunk_len, s1 = min(s0 + chunk_len, n_samples);
-  __global float* out = partial + (size_t)c * partial_stride + layer_off;
-  __global const float* dzl = dz + (size_t)dz_row * padded;
+  DW_WORK_ITEM
 
   for (uint ss = s0; ss < s1; ss += sub) {
     const uint se = min(ss + sub, s1);
@@ -494,14 +499,7 @@ __kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, 
                                     const uint partial_stride, const uint layer_off, __global float* restrict scratch,
                                     const uint scratch_stride) {
   const uint n_in = a_n + x_n, nv = (n_in + 15) / 16, cstride = nv * 16;
-  const uint regions = (n_out + DW_ROWS - 1) / DW_ROWS;
-  const size_t gid = get_global_id(0);
-  if (gid >= (size_t)n_chunks * regions) return;
-  const uint c = gid / regions;
-  const uint jr0 = (gid % regions) * DW_ROWS, jr1 = min(jr0 + DW_ROWS, n_out);
-  const uint s0 = c * chunk_len, s1 = min(s0 + chunk_len, n_samples);
-  __global float* out = partial + (size_t)c * partial_stride + layer_off;
-  __global const float* dzl = dz + (size_t)dz_row * padded;
+  DW_WORK_ITEM
   __global float* cbuf = scratch + gid * scratch_stride;
   __global float16* packed = (__global float16*)(cbuf + (size_t)DW_ROWS * cstride);
 
