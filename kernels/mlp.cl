@@ -580,8 +580,14 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 // to the work-item's partial slot instead of storing them;
 // mlp_reduce_chunks adds the chunks in a fixed order (deterministic, no atomics).
 //
+// With DW_VEC == 1 the weight-gradient blocks take the outer-product form of mlp_weight_grad_outer instead:
+// per layer the group's input rows are transposed into pk and DW_RJ x DW_RK blocks accumulate float dW rows
+// (cacc, 4 bytes per parameter instead of 64, so larger networks fit the cache), which the chunk's last group
+// copies to the partial slot.
+//
 // scratch (per work-item, scratch_stride floats apart, 64-byte aligned):
-//   acc   n_params float16           accumulator of parameter i (the parameters' layout)
+//   acc   n_params float16           accumulator of parameter i (the parameters' layout); with DW_VEC == 1
+//                                    n_params float16s holding cacc (fused_outer_offset) and pk
 //   rows  N_ROWS x TRAIN_G float16   like `act`: x (N_IN), ones, h_0 .. h_(N_HIDDEN-1)
 //   g     2 x GMAX x TRAIN_G float16 dZ of the current layer and of the one below
 //   sink  N_IN x TILE floats         dL/dx of repeated tiles (past the chunk's end) goes here
@@ -608,6 +614,36 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
     dxt[u] = t_ < t_end ? dx + tile[u] * (size_t)(N_IN * TILE) : sink; \
   }
 
+#if DW_VEC == 1
+// The outer-product weight gradients of the fused kernel: per layer, its rows padded to a multiple of DW_RJ,
+// each of round_up(stride, 16) floats, at fused_outer_offset(l) in the work-item's cacc; the layer's input
+// rows of the group transposed in pk ([v][s]: the 16 inputs 16 v .. of sample s of the group as a float16).
+inline uint fused_outer_offset(const uint l) {
+  uint off = 0;
+  for (uint m = 0; m < l; ++m) off += (LAYER_OUT(m) + DW_RJ - 1) / DW_RJ * DW_RJ * ((LAYER_STRIDE(m) + 15) / 16 * 16);
+  return off;
+}
+
+#define FUSED_OUTER_BLOCK(NRK, v0)                                                                                    \
+  {                                                                                                                   \
+    __global float* cb_ = cb_l + (size_t)j0 * cs + (v0)*16;                                                           \
+    __global const float16* px_ = pk + (size_t)(v0)*TRAIN_G * TILE;                                                   \
+    float16 acc[DW_RJ][NRK];                                                                                          \
+    _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) acc[i][r] = \
+        first_group ? (float16)0.0f : vload16(0, cb_ + i * cs + r * 16);                                              \
+    for (uint s = 0; s < TRAIN_G * TILE; ++s) {                                                                       \
+      float16 xv[NRK];                                                                                                \
+      _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) xv[r] = px_[r * TRAIN_G * TILE + s];                         \
+      _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) {                                                            \
+        const float16 d = (float16)(dzp[i][s]);                                                                       \
+        _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);                      \
+      }                                                                                                               \
+    }                                                                                                                 \
+    _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) _Pragma("unroll") for (uint r = 0; r < (NRK); ++r)             \
+        vstore16(acc[i][r], 0, cb_ + i * cs + r * 16);                                                                \
+  }
+#endif
+
 __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint chunk_tiles, const uint n_params,
                               __global const float* restrict params, const uint param_offset,
                               __global const float* restrict wt_params, __global const float* restrict x,
@@ -621,6 +657,11 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
   __global const float* p = params + param_offset;
   __global float16* accv = (__global float16*)(scratch + c * scratch_stride);
   __global float16* rows = accv + n_params;
+#if DW_VEC == 1
+  // n_params: here the size of the outer-product region in float16s (cacc, then pk).
+  __global float* cacc = (__global float*)accv;
+  __global float16* pk = accv + fused_outer_offset(N_HIDDEN + 1) / 16;
+#endif
   __global float16* gbuf = rows + N_ROWS * TRAIN_G;
   __global float* sink = (__global float*)(gbuf + 2 * GMAX * TRAIN_G);
   const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
@@ -677,6 +718,52 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
       // Input rows of layer l in the scratch: a_n activation rows from a_row, then from x_row (x and/or ones).
       const uint a_row = l == 0 ? 0 : ACT_H0 + (l - 1) * WIDTH, a_n = l == 0 ? 0 : WIDTH;
       const uint x_row = l == 0 || lskip ? 0 : N_IN;
+#if DW_VEC == 1
+      {  // dW_l += dZ_l x input_l over the group's samples, in the outer-product form (mlp_weight_grad_outer):
+         // the group's input rows transposed into pk, then DW_RJ x DW_RK blocks of the float dW rows in cacc.
+        __global const float16* gin = gbuf + (l & 1) * GMAX * HS;
+        const uint nv = (stride + 15) / 16, cs = nv * 16;
+        __global float* cb_l = cacc + fused_outer_offset(l);
+        for (uint v = 0; v < nv; ++v)
+          for (uint u = 0; u < TRAIN_G; ++u) {
+            float16 r[16];
+#pragma unroll
+            for (uint i = 0; i < 16; ++i) {
+              const uint k = min(v * 16 + i, stride - 1);
+              const float16 x = rows[(k < a_n ? a_row + k : x_row + (k - a_n)) * HS + u];
+              r[i] = v * 16 + i < stride ? x : (float16)0.0f;
+            }
+            transpose16(r);
+#pragma unroll
+            for (uint i = 0; i < 16; ++i) pk[(size_t)v * TRAIN_G * TILE + u * TILE + i] = r[i];
+          }
+        for (uint j0 = 0; j0 < nout; j0 += DW_RJ) {
+          // dZ row j0 + i over the group's samples (past the last row: the last row, not written out).
+          __global const float* dzp[DW_RJ];
+#pragma unroll
+          for (uint i = 0; i < DW_RJ; ++i) dzp[i] = (__global const float*)(gin + min(j0 + i, nout - 1) * HS);
+          uint v0 = 0;
+          for (; v0 + DW_RK <= nv; v0 += DW_RK) FUSED_OUTER_BLOCK(DW_RK, v0)
+#if DW_RK > 1
+          switch (nv - v0) {  // the last column vectors
+#if DW_RK > 3
+            case 3: FUSED_OUTER_BLOCK(3, v0) break;
+#endif
+#if DW_RK > 2
+            case 2: FUSED_OUTER_BLOCK(2, v0) break;
+#endif
+            case 1: FUSED_OUTER_BLOCK(1, v0) break;
+            default: break;
+          }
+#endif
+        }
+        if (last_group) {
+          __global float* out_l = out + layer_offset(l);
+          for (uint j = 0; j < nout; ++j)
+            for (uint k = 0; k < stride; ++k) out_l[j * stride + k] = cb_l[j * cs + k];
+        }
+      }
+#else
       {  // dW_l += dZ_l x input_l over the group's TRAIN_G tiles, DW_RJ x DW_RK blocks.
         __global const float16* gin = gbuf + (l & 1) * GMAX * HS;
         __global float16* acc_l = accv + layer_offset(l);
@@ -723,6 +810,7 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
                 }
           }
       }
+#endif
       // dL/dx (layer 0 and skips) and dZ of layer l - 1, FWD_T tiles at a time.
       for (uint sg = 0; sg < TRAIN_G / FWD_T; ++sg) {
         SUB_TILES(sg)

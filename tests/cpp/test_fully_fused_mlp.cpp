@@ -137,6 +137,8 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
                                    {Blocking{3, 5, 3, 16, 3, 5, 9, kAlways, 3}, {}},
                                    {Blocking{1, 4, 4, 8, 4, 3, 16, kAlways, 5}, {}},
                                    {Blocking{4, 6, 6, 1, 8, 3, 256, 0}, {}},
+                                   {Blocking{4, 6, 6, 1, 8, 3, 256, kAlways, 16}, {}},
+                                   {Blocking{1, 4, 4, 1, 5, 4, 10, kAlways, 3}, {}},
                                    {Blocking{2, 5, 3, 1, 3, 2, 9, 0}, {}},
                                    {Blocking{1, 4, 4, 1, 5, 4, 10, 0}, {}},
                                    {{}, kWgNvidia},

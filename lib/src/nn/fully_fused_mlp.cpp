@@ -512,15 +512,28 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     const std::uint32_t chunk_tiles = static_cast<std::uint32_t>((groups + chunks - 1) / chunks) * t;
     const std::uint32_t n_chunks = (n_tiles + chunk_tiles - 1) / chunk_tiles;
     const std::size_t rows = m_n_input + 1 + std::size_t(m_n_hidden) * m_width + 2 * std::max(m_width, m_n_output);
-    const std::size_t stride = round_up(16 * (np + rows * t + m_n_input), 16);
+    // The accumulators (kernels/mlp.cl, mlp_train_fused), in float16s: one per parameter, or with the
+    // outer-product weight gradients every layer's dW rows (rows padded to a multiple of dw_rows, columns to 16)
+    // and the group's transposed input rows.
+    std::size_t acc16 = np;
+    if (k.blocking.dw_vector == 1) {
+      std::size_t floats = 0, vectors = 0;
+      for (std::uint32_t l = 0; l <= m_n_hidden; ++l) {
+        const std::size_t cols = round_up(layer_inputs(l) + (m_bias ? 1 : 0), 16);
+        floats += round_up(layer_outputs(l), k.blocking.dw_rows) * cols;
+        vectors = std::max(vectors, cols / 16);
+      }
+      acc16 = floats / 16 + vectors * t * kBatchTile;
+    }
+    const std::size_t stride = round_up(16 * (acc16 + rows * t + m_n_input), 16);
     if (ws->scratch.size() < n_chunks * stride) ws->scratch = Buffer<float>(device, n_chunks * stride);
     if (ws->partial.size() < std::size_t(n_chunks) * np)
       ws->partial = Buffer<float>(device, std::size_t(n_chunks) * np);
     Kernel tk = k.train;
-    tk.args(n_tiles, batch, chunk_tiles, np, *params.buffer, static_cast<std::uint32_t>(params.offset), ws->wt,
-            input.data(), output.data(), d_output.data(), d_input ? d_input->data() : ws->scratch,
-            static_cast<std::uint32_t>(d_input ? 1 : 0), ws->scratch, static_cast<std::uint32_t>(stride), ws->partial,
-            np);
+    tk.args(n_tiles, batch, chunk_tiles, static_cast<std::uint32_t>(acc16), *params.buffer,
+            static_cast<std::uint32_t>(params.offset), ws->wt, input.data(), output.data(), d_output.data(),
+            d_input ? d_input->data() : ws->scratch, static_cast<std::uint32_t>(d_input ? 1 : 0), ws->scratch,
+            static_cast<std::uint32_t>(stride), ws->partial, np);
     tk.launch(n_chunks, 1);
     reduce_chunks(n_chunks);
     return;

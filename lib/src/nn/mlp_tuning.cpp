@@ -53,9 +53,13 @@ constexpr Blocking kAvx512{4, 6, 6, 16, 8, 3, 24, 16384, 16};
 //    sub-chunk did not stay in L1 beside the input rows it streams from L2; the outer form's blocks of 512
 //    samples keep them there and need no horizontal sums. Its weight-gradient kernel took 1.02-1.07x the
 //    backward kernel's time in perf samples, against 1.35x for the lane form, and the width-256 training step
-//    1028-1060 ms against 1105-1175 (alternated, docs/benchmarks.md). On a 2-core Intel Xeon (AVX-512, 2 MB L2
-//    per core); the width-64 net (fused training) does not change.
-constexpr Blocking kAvx512Intel{4, 6, 6, 1, 8, 3, 256, 16384, 16};
+//    1028-1060 ms against 1105-1175 (alternated, docs/benchmarks.md). The fused training kernel then also takes
+//    its weight gradients in the outer-product form, with float accumulators (4 bytes per parameter instead
+//    of 64), in groups of 4 tiles: the width-64 step 29.0-30.8 ms against 31.9-34.3 for the lane form in
+//    groups of 16 (groups of 8 and 16 were 2-5 % slower than 4), and networks up to 65,536 parameters: the
+//    width-128 step 131.6 / 132.7 ms against 166.8 / 161.4 with the separate kernels (the width-256 trunk,
+//    2 MB of accumulators, was 8-12 % slower fused). On a 2-core Intel Xeon (AVX-512, 2 MB L2 per core).
+constexpr Blocking kAvx512Intel{4, 6, 6, 1, 8, 3, 256, 65536, 4};
 
 // Work-group parameters: samples, items, rows x cols register block, k_tile, dW tile / block / samples, dW
 // chunk.
