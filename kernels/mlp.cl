@@ -472,24 +472,53 @@ inline void transpose16(float16* r) {
   }
 }
 
-// The DW_RJ x NRK block of rows j0.. and column vectors v0.. over the current block of len samples.
-#define DW_OUTER_BLOCK(NRK, v0)                                                                                       \
+// The DW_RJ x NRK block of column vectors v0.. of the dW rows at cb (row i at cb + i * cs) over n samples:
+// the input vectors at px ([v][s], pstride float16s per vector), dZ row i at dzp[i]; `first` starts the
+// accumulators from zero instead of the stored rows.
+#define OUTER_BLOCK(NRK, v0, cb, cs, px, pstride, n, first)                                                           \
   {                                                                                                                   \
-    __global float* cb_ = cbuf + (size_t)(j0 - jr0) * cstride + (v0)*16;                                              \
-    __global const float16* px_ = packed + (size_t)(v0)*sub;                                                          \
+    __global float* cb_ = (cb) + (v0)*16;                                                                             \
+    __global const float16* px_ = (px) + (size_t)(v0) * (pstride);                                                    \
     float16 acc[DW_RJ][NRK];                                                                                          \
     _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) acc[i][r] = \
-        first ? (float16)0.0f : vload16(0, cb_ + i * cstride + r * 16);                                               \
-    for (uint s = 0; s < len; ++s) {                                                                                  \
+        (first) ? (float16)0.0f : vload16(0, cb_ + i * (cs) + r * 16);                                                \
+    for (uint s = 0; s < (n); ++s) {                                                                                  \
       float16 xv[NRK];                                                                                                \
-      _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) xv[r] = px_[r * sub + s];                                    \
+      _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) xv[r] = px_[r * (pstride) + s];                              \
       _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) {                                                            \
         const float16 d = (float16)(dzp[i][s]);                                                                       \
         _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);                      \
       }                                                                                                               \
     }                                                                                                                 \
     _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) _Pragma("unroll") for (uint r = 0; r < (NRK); ++r)             \
-        vstore16(acc[i][r], 0, cb_ + i * cstride + r * 16);                                                           \
+        vstore16(acc[i][r], 0, cb_ + i * (cs) + r * 16);                                                              \
+  }
+
+// All nv column vectors of the DW_RJ rows at cb: blocks of DW_RK, then the last ones.
+#if DW_RK > 3
+#define OUTER_LAST_3(...) \
+  case 3:                 \
+    OUTER_BLOCK(3, __VA_ARGS__) break;
+#else
+#define OUTER_LAST_3(...)
+#endif
+#if DW_RK > 2
+#define OUTER_LAST_2(...) \
+  case 2:                 \
+    OUTER_BLOCK(2, __VA_ARGS__) break;
+#else
+#define OUTER_LAST_2(...)
+#endif
+#define OUTER_ROW(cb, cs, px, pstride, n, first)                                                \
+  {                                                                                             \
+    uint v0 = 0;                                                                                \
+    for (; v0 + DW_RK <= nv; v0 += DW_RK) OUTER_BLOCK(DW_RK, v0, cb, cs, px, pstride, n, first) \
+    switch (nv - v0) {                                                                          \
+      OUTER_LAST_3(v0, cb, cs, px, pstride, n, first)                                           \
+      OUTER_LAST_2(v0, cb, cs, px, pstride, n, first)                                           \
+      case 1: OUTER_BLOCK(1, v0, cb, cs, px, pstride, n, first) break;                          \
+      default: break;                                                                           \
+    }                                                                                           \
   }
 
 __kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, const uint n_chunks, const uint sub,
@@ -525,20 +554,7 @@ __kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, 
       __global const float* dzp[DW_RJ];
 #pragma unroll
       for (uint i = 0; i < DW_RJ; ++i) dzp[i] = dzl + (size_t)min(j0 + i, jr1 - 1) * padded + ss;
-      uint v0 = 0;
-      for (; v0 + DW_RK <= nv; v0 += DW_RK) DW_OUTER_BLOCK(DW_RK, v0)
-#if DW_RK > 1
-      switch (nv - v0) {  // the last column vectors
-#if DW_RK > 3
-        case 3: DW_OUTER_BLOCK(3, v0) break;
-#endif
-#if DW_RK > 2
-        case 2: DW_OUTER_BLOCK(2, v0) break;
-#endif
-        case 1: DW_OUTER_BLOCK(1, v0) break;
-        default: break;
-      }
-#endif
+      OUTER_ROW(cbuf + (size_t)(j0 - jr0) * cstride, cstride, packed, sub, len, first)
     }
   }
   for (uint j = jr0; j < jr1; ++j)
@@ -624,24 +640,6 @@ inline uint fused_outer_offset(const uint l) {
   return off;
 }
 
-#define FUSED_OUTER_BLOCK(NRK, v0)                                                                                    \
-  {                                                                                                                   \
-    __global float* cb_ = cb_l + (size_t)j0 * cs + (v0)*16;                                                           \
-    __global const float16* px_ = pk + (size_t)(v0)*TRAIN_G * TILE;                                                   \
-    float16 acc[DW_RJ][NRK];                                                                                          \
-    _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) acc[i][r] = \
-        first_group ? (float16)0.0f : vload16(0, cb_ + i * cs + r * 16);                                              \
-    for (uint s = 0; s < TRAIN_G * TILE; ++s) {                                                                       \
-      float16 xv[NRK];                                                                                                \
-      _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) xv[r] = px_[r * TRAIN_G * TILE + s];                         \
-      _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) {                                                            \
-        const float16 d = (float16)(dzp[i][s]);                                                                       \
-        _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);                      \
-      }                                                                                                               \
-    }                                                                                                                 \
-    _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) _Pragma("unroll") for (uint r = 0; r < (NRK); ++r)             \
-        vstore16(acc[i][r], 0, cb_ + i * cs + r * 16);                                                                \
-  }
 #endif
 
 __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint chunk_tiles, const uint n_params,
@@ -742,20 +740,7 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
           __global const float* dzp[DW_RJ];
 #pragma unroll
           for (uint i = 0; i < DW_RJ; ++i) dzp[i] = (__global const float*)(gin + min(j0 + i, nout - 1) * HS);
-          uint v0 = 0;
-          for (; v0 + DW_RK <= nv; v0 += DW_RK) FUSED_OUTER_BLOCK(DW_RK, v0)
-#if DW_RK > 1
-          switch (nv - v0) {  // the last column vectors
-#if DW_RK > 3
-            case 3: FUSED_OUTER_BLOCK(3, v0) break;
-#endif
-#if DW_RK > 2
-            case 2: FUSED_OUTER_BLOCK(2, v0) break;
-#endif
-            case 1: FUSED_OUTER_BLOCK(1, v0) break;
-            default: break;
-          }
-#endif
+          OUTER_ROW(cb_l + (size_t)j0 * cs, cs, pk, TRAIN_G * TILE, TRAIN_G * TILE, first_group)
         }
         if (last_group) {
           __global float* out_l = out + layer_offset(l);
