@@ -348,17 +348,6 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
 // Sum of the 16 lanes, in a fixed order (pairwise halves).
 #define sum16 relit_sum16
 
-// The accumulators: DW_VEC samples (float8: one 256-bit register, float16: one 512-bit register).
-#if DW_VEC == 16
-typedef float16 dw_vec;
-#define DW_LOAD(p) vload16(0, (p))
-#define dw_sum sum16
-#else
-typedef float8 dw_vec;
-#define DW_LOAD(p) vload8(0, (p))
-#define dw_sum relit_sum8
-#endif
-
 // The weight-gradient kernels' work-item: chunk c of the batch (samples s0 .. s1) and the region of dW rows
 // jr0 .. jr1, its partial rows `out` and the layer's dZ rows `dzl`; past the last work-item it returns.
 #define DW_WORK_ITEM                                                           \
@@ -370,6 +359,18 @@ typedef float8 dw_vec;
   const uint s0 = c * chunk_len, s1 = min(s0 + chunk_len, n_samples);          \
   __global float* out = partial + (size_t)c * partial_stride + layer_off;      \
   __global const float* dzl = dz + (size_t)dz_row * padded;
+
+#if DW_VEC != 1  // the lane form (DW_VEC 1: mlp_weight_grad_outer below)
+// The accumulators: DW_VEC samples (float8: one 256-bit register, float16: one 512-bit register).
+#if DW_VEC == 16
+typedef float16 dw_vec;
+#define DW_LOAD(p) vload16(0, (p))
+#define dw_sum sum16
+#else
+typedef float8 dw_vec;
+#define DW_LOAD(p) vload8(0, (p))
+#define dw_sum relit_sum8
+#endif
 
 __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len, const uint n_chunks, const uint sub,
                                       const uint padded, __global const float* restrict dz, const uint dz_row,
@@ -426,6 +427,7 @@ __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len
     }
   }
 }
+#endif
 
 #if DW_VEC == 1
 // ---------------------------------------------------------------------------------------------------------
@@ -471,6 +473,21 @@ inline void transpose16(float16* r) {
     for (uint i = 0; i < 16; ++i) r[i] = t[i];
   }
 }
+
+// One tile of 16 samples of the inputs 16 v .. 16 v + 15 of a layer, transposed into dst[0 .. 15] (sample i's
+// 16 inputs as one float16). Input k is row a_row + k of its source for k < a_n, else row x_row + k - a_n;
+// SRC(row) loads the tile's float16 of a row; inputs past n_in are zero.
+#define PACK_TILE(dst, v, n_in, a_n, a_row, x_row, SRC)                           \
+  {                                                                               \
+    float16 r_[16];                                                               \
+    _Pragma("unroll") for (uint i_ = 0; i_ < 16; ++i_) {                          \
+      const uint k_ = min((v)*16 + i_, (n_in)-1);                                 \
+      const float16 x_ = SRC(k_ < (a_n) ? (a_row) + k_ : (x_row) + (k_ - (a_n))); \
+      r_[i_] = (v)*16 + i_ < (n_in) ? x_ : (float16)0.0f;                         \
+    }                                                                             \
+    transpose16(r_);                                                              \
+    _Pragma("unroll") for (uint i_ = 0; i_ < 16; ++i_)(dst)[i_] = r_[i_];         \
+  }
 
 // The DW_RJ x NRK block of column vectors v0.. of the dW rows at cb (row i at cb + i * cs) over n samples:
 // the input vectors at px ([v][s], pstride float16s per vector), dZ row i at dzp[i]; `first` starts the
@@ -535,19 +552,9 @@ __kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, 
   for (uint ss = s0; ss < s1; ss += sub) {
     const uint len = min(sub, s1 - ss);  // a multiple of 16, like chunk_len and n_samples
     const bool first = ss == s0;
+#define SRC_ACT(row) vload16(0, act + (size_t)(row)*padded + ss + t)
     for (uint v = 0; v < nv; ++v)
-      for (uint t = 0; t < len; t += 16) {
-        float16 r[16];
-#pragma unroll
-        for (uint i = 0; i < 16; ++i) {
-          const uint k = v * 16 + i;
-          const uint row = k < a_n ? a_row + k : x_row + (k - a_n);
-          r[i] = k < n_in ? vload16(0, act + (size_t)row * padded + ss + t) : (float16)0.0f;
-        }
-        transpose16(r);
-#pragma unroll
-        for (uint i = 0; i < 16; ++i) packed[(size_t)v * sub + t + i] = r[i];
-      }
+      for (uint t = 0; t < len; t += 16) PACK_TILE(packed + (size_t)v * sub + t, v, n_in, a_n, a_row, x_row, SRC_ACT)
     for (uint j0 = jr0; j0 < jr1; j0 += DW_RJ) {
       // Rows past the end repeat the last one; cbuf has room for them (DW_ROWS is a multiple of DW_RJ) and they
       // are never written out.
@@ -722,19 +729,10 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
         __global const float16* gin = gbuf + (l & 1) * GMAX * HS;
         const uint nv = (stride + 15) / 16, cs = nv * 16;
         __global float* cb_l = cacc + fused_outer_offset(l);
+#define SRC_ROWS(row) rows[(row)*HS + u]
         for (uint v = 0; v < nv; ++v)
-          for (uint u = 0; u < TRAIN_G; ++u) {
-            float16 r[16];
-#pragma unroll
-            for (uint i = 0; i < 16; ++i) {
-              const uint k = min(v * 16 + i, stride - 1);
-              const float16 x = rows[(k < a_n ? a_row + k : x_row + (k - a_n)) * HS + u];
-              r[i] = v * 16 + i < stride ? x : (float16)0.0f;
-            }
-            transpose16(r);
-#pragma unroll
-            for (uint i = 0; i < 16; ++i) pk[(size_t)v * TRAIN_G * TILE + u * TILE + i] = r[i];
-          }
+          for (uint u = 0; u < TRAIN_G; ++u)
+            PACK_TILE(pk + (size_t)v * TRAIN_G * TILE + u * TILE, v, stride, a_n, a_row, x_row, SRC_ROWS)
         for (uint j0 = 0; j0 < nout; j0 += DW_RJ) {
           // dZ row j0 + i over the group's samples (past the last row: the last row, not written out).
           __global const float* dzp[DW_RJ];

@@ -553,23 +553,24 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
   const std::size_t chunks = std::clamp<std::size_t>(std::min(wanted, budget), 1, n_tiles);
   plan.chunk_len = static_cast<std::uint32_t>((n_tiles + chunks - 1) / chunks) * kBatchTile;
   plan.n_chunks = (plan.n_samples + plan.chunk_len - 1) / plan.chunk_len;
-  plan.sub = static_cast<std::uint32_t>(
-      std::clamp<std::size_t>(kSubChunkBytes / (std::size_t(max_in) * sizeof(float)), kMinSubChunk, kMaxSubChunk) /
-      kBatchTile * kBatchTile);
+  const bool outer = k.blocking.dw_vector == 1;
+  plan.sub =
+      outer ? kOuterBlock
+            : static_cast<std::uint32_t>(std::clamp<std::size_t>(kSubChunkBytes / (std::size_t(max_in) * sizeof(float)),
+                                                                 kMinSubChunk, kMaxSubChunk) /
+                                         kBatchTile * kBatchTile);
   if (ws->partial.size() < std::size_t(plan.n_chunks) * np)
     ws->partial = Buffer<float>(device, std::size_t(plan.n_chunks) * np);
   // The outer-product form (dw_vector 1): per work-item its dW rows and the transposed input rows of one block
   // of plan.sub samples (kernels/mlp.cl, mlp_weight_grad_outer).
-  const bool outer = k.blocking.dw_vector == 1;
   std::uint32_t dw_stride = 0;
-  std::size_t dw_items = 0;
   if (outer) {
-    plan.sub = kOuterBlock;
     const std::size_t cstride = round_up(max_in, 16);
     dw_stride = static_cast<std::uint32_t>(round_up(k.blocking.dw_region * cstride + cstride * plan.sub, 16));
     const std::uint32_t max_out = std::max(m_width, m_n_output);
-    dw_items = std::size_t(plan.n_chunks) * ((max_out + k.blocking.dw_region - 1) / k.blocking.dw_region);
-    if (ws->scratch.size() < dw_items * dw_stride) ws->scratch = Buffer<float>(device, dw_items * dw_stride);
+    const std::size_t items =
+        std::size_t(plan.n_chunks) * ((max_out + k.blocking.dw_region - 1) / k.blocking.dw_region);
+    if (ws->scratch.size() < items * dw_stride) ws->scratch = Buffer<float>(device, items * dw_stride);
   }
 
   // 1. dZ of every layer (and dL/dx), one work-item per tile.
