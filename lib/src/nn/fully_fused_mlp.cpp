@@ -590,10 +590,12 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     wk.args(plan.n_samples, plan.chunk_len, plan.n_chunks, plan.sub, ws->padded, ws->dz, l * m_width, n_out, ws->act,
             l == 0 ? 0u : m_n_input + 1 + (l - 1) * m_width, a_n, x_row, x_n, ws->partial, np, layer_offset(l));
     if (outer) wk.arg(16, ws->scratch).arg(17, dw_stride);
-    // Few, long work-items: keep at least ~4 work-groups per compute unit for load balance.
+    // Few, long work-items: at least ~4 work-groups per compute unit for load balance, else groups of one. Only
+    // these two sizes: a CPU driver builds a kernel for every work-group size it is launched with (PoCL: seconds
+    // for this one), and halving the size step by step built it up to four times over for small batches.
     const std::size_t items = std::size_t(plan.n_chunks) * regions;
     std::size_t local = k.local_weight_grad;
-    while (local > 1 && items / local < 4 * std::size_t(std::max(1u, device.info().compute_units))) local /= 2;
+    if (local > 1 && items / local < 4 * std::size_t(std::max(1u, device.info().compute_units))) local = 1;
     wk.launch(items, local);
   }
 
