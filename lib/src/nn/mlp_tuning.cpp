@@ -42,7 +42,9 @@ struct Row {
 //    blocks; 2 % faster at width 64 and 3-10 % at width 256 than 5 x 5), and the fused training kernel for
 //    small networks, whose separate backward kernels are bound by memory traffic, in groups of 16 tiles
 //    (each dW accumulator load and store feeds 16 FMAs: 4 % faster than groups of 8 at width 64). A/B runs
-//    on a quiet 2-core Zen 5, docs/networks.md.
+//    on a quiet 2-core Zen 5, docs/networks.md. The outer-product weight gradients (dw_vector 1, below) on a
+//    2-core Zen 3 (AVX2): 6 x 1 blocks tied with the lane form at width 256 and were 10-20 % slower at width
+//    64 (also fused), so the AVX2 row keeps the lane form.
 constexpr Blocking kAvx2{};
 constexpr Blocking kAvx512{4, 6, 6, 16, 8, 3, 24, 16384, 16};
 //  - Intel AVX-512 CPUs: the same forward and backward blocks, but a weight-gradient work-item owns all 256 rows
