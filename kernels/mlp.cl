@@ -511,6 +511,13 @@ inline void transpose16(float16* r) {
         vstore16(acc[i][r], 0, cb_ + i * (cs) + r * 16);                                                              \
   }
 
+// The n_rows x n_cols dW rows at src (src_stride floats apart) into the partial slot's rows at dst.
+inline void copy_dw_rows(__global float* restrict dst, __global const float* restrict src, const uint n_rows,
+                         const uint n_cols, const uint src_stride) {
+  for (uint j = 0; j < n_rows; ++j)
+    for (uint k = 0; k < n_cols; ++k) dst[j * n_cols + k] = src[(size_t)j * src_stride + k];
+}
+
 // All nv column vectors of the DW_RJ rows at cb: blocks of DW_RK, then the last ones.
 #if DW_RK > 3
 #define OUTER_LAST_3(...) \
@@ -564,8 +571,7 @@ __kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, 
       OUTER_ROW(cbuf + (size_t)(j0 - jr0) * cstride, cstride, packed, sub, len, first)
     }
   }
-  for (uint j = jr0; j < jr1; ++j)
-    for (uint k = 0; k < n_in; ++k) out[j * n_in + k] = cbuf[(size_t)(j - jr0) * cstride + k];
+  copy_dw_rows(out + jr0 * n_in, cbuf, jr1 - jr0, n_in, cstride);
 }
 #endif
 
@@ -609,8 +615,8 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 // copies to the partial slot.
 //
 // scratch (per work-item, scratch_stride floats apart, 64-byte aligned):
-//   acc   n_params float16           accumulator of parameter i (the parameters' layout); with DW_VEC == 1
-//                                    n_params float16s holding cacc (fused_outer_offset) and pk
+//   acc   acc16 float16s             the accumulators: one per parameter i (the parameters' layout), or with
+//                                    DW_VEC == 1 cacc (fused_outer_offset) and pk
 //   rows  N_ROWS x TRAIN_G float16   like `act`: x (N_IN), ones, h_0 .. h_(N_HIDDEN-1)
 //   g     2 x GMAX x TRAIN_G float16 dZ of the current layer and of the one below
 //   sink  N_IN x TILE floats         dL/dx of repeated tiles (past the chunk's end) goes here
@@ -649,7 +655,7 @@ inline uint fused_outer_offset(const uint l) {
 
 #endif
 
-__kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint chunk_tiles, const uint n_params,
+__kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint chunk_tiles, const uint acc16,
                               __global const float* restrict params, const uint param_offset,
                               __global const float* restrict wt_params, __global const float* restrict x,
                               __global const float* restrict y, __global const float* restrict dy,
@@ -661,9 +667,8 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
   const size_t t_end = min(t_begin + chunk_tiles, (size_t)n_tiles);
   __global const float* p = params + param_offset;
   __global float16* accv = (__global float16*)(scratch + c * scratch_stride);
-  __global float16* rows = accv + n_params;
+  __global float16* rows = accv + acc16;
 #if DW_VEC == 1
-  // n_params: here the size of the outer-product region in float16s (cacc, then pk).
   __global float* cacc = (__global float*)accv;
   __global float16* pk = accv + fused_outer_offset(N_HIDDEN + 1) / 16;
 #endif
@@ -740,11 +745,7 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
           for (uint i = 0; i < DW_RJ; ++i) dzp[i] = (__global const float*)(gin + min(j0 + i, nout - 1) * HS);
           OUTER_ROW(cb_l + (size_t)j0 * cs, cs, pk, TRAIN_G * TILE, TRAIN_G * TILE, first_group)
         }
-        if (last_group) {
-          __global float* out_l = out + layer_offset(l);
-          for (uint j = 0; j < nout; ++j)
-            for (uint k = 0; k < stride; ++k) out_l[j * stride + k] = cb_l[j * cs + k];
-        }
+        if (last_group) copy_dw_rows(out + layer_offset(l), cb_l, nout, stride, cs);
       }
 #else
       {  // dW_l += dZ_l x input_l over the group's TRAIN_G tiles, DW_RJ x DW_RK blocks.

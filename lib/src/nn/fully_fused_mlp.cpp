@@ -245,9 +245,11 @@ std::uint32_t FullyFusedMLP::layer_inputs(std::uint32_t l) const {
 
 std::uint32_t FullyFusedMLP::layer_outputs(std::uint32_t l) const { return l == m_n_hidden ? m_n_output : m_width; }
 
+std::uint32_t FullyFusedMLP::layer_stride(std::uint32_t l) const { return layer_inputs(l) + (m_bias ? 1 : 0); }
+
 std::uint32_t FullyFusedMLP::layer_offset(std::uint32_t l) const {
   std::uint32_t off = 0;
-  for (std::uint32_t i = 0; i < l; ++i) off += layer_outputs(i) * (layer_inputs(i) + (m_bias ? 1 : 0));
+  for (std::uint32_t i = 0; i < l; ++i) off += layer_outputs(i) * layer_stride(i);
   return off;
 }
 
@@ -263,7 +265,7 @@ void FullyFusedMLP::initialize_params(float* out, std::uint64_t seed) const {
   // Uniform He (Kaiming) init for the ReLU layers, Xavier for the output layer; zero biases.
   SplitMix rng{seed ^ 0x6d6c702d696e6974ull};
   for (std::uint32_t l = 0; l <= m_n_hidden; ++l) {
-    const std::uint32_t n_in = layer_inputs(l), n_out = layer_outputs(l), stride = n_in + (m_bias ? 1 : 0);
+    const std::uint32_t n_in = layer_inputs(l), n_out = layer_outputs(l), stride = layer_stride(l);
     const bool relu = l < m_n_hidden && m_hidden_activation == Activation::ReLU;
     const double bound = relu ? std::sqrt(6.0 / n_in) : std::sqrt(6.0 / (n_in + n_out));
     float* w = out + layer_offset(l);
@@ -519,7 +521,7 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     if (k.blocking.dw_vector == 1) {
       std::size_t floats = 0, vectors = 0;
       for (std::uint32_t l = 0; l <= m_n_hidden; ++l) {
-        const std::size_t cols = round_up(layer_inputs(l) + (m_bias ? 1 : 0), 16);
+        const std::size_t cols = round_up(layer_stride(l), 16);
         floats += round_up(layer_outputs(l), k.blocking.dw_rows) * cols;
         vectors = std::max(vectors, cols / 16);
       }
