@@ -43,13 +43,13 @@ std::string wrap(const std::vector<std::string>& words, std::size_t indent, std:
   return out + line;
 }
 
-struct Options {
+struct DevicesOptions {
   std::string selector;
   bool json = false;
   bool check = true;
 };
 
-int run_devices(const Options& o) {
+int run_devices(const DevicesOptions& o) {
   const auto infos = list_devices();
   nlohmann::json doc = {{"relit_version", relit::version()},
                         {"build_features", relit::build_features()},
@@ -160,7 +160,7 @@ int run_devices(const Options& o) {
 }  // namespace
 
 void add_devices_command(CLI::App& app) {
-  auto o = std::make_shared<Options>();
+  auto o = std::make_shared<DevicesOptions>();
   auto* cmd =
       app.add_subcommand("devices", "list OpenCL platforms and devices, and check that relit's kernels build on each");
   cmd->add_option("--device,-d", o->selector,

@@ -13,7 +13,7 @@ namespace relit::cli {
 
 namespace {
 
-struct Options {
+struct GenerateOptions {
   std::string scene = "cloud", out, device;
   DatasetSettings settings;
   std::vector<float> intensity;
@@ -21,7 +21,7 @@ struct Options {
   int scene_resolution = 64;
 };
 
-int run_generate(Options& o) {
+int run_generate(GenerateOptions& o) {
   DatasetSettings& s = o.settings;
   if (o.intensity.size() == 1)
     s.intensity_min = s.intensity_max = o.intensity[0];
@@ -51,7 +51,7 @@ int run_generate(Options& o) {
 }  // namespace
 
 void add_generate_command(CLI::App& app) {
-  auto o = std::make_shared<Options>();
+  auto o = std::make_shared<GenerateOptions>();
   DatasetSettings& s = o->settings;
   auto* cmd = app.add_subcommand("generate", "render a multi-view dataset of a scene with the reference path tracer");
   cmd->add_option("--scene", o->scene, "built-in scene (cloud, smoke, blobs, spheres, torus) or a scene .json file")

@@ -15,12 +15,12 @@ namespace py = pybind11;
 namespace relit::python {
 
 namespace {
-using Image = py::array_t<float, py::array::c_style | py::array::forcecast>;
+using ImageArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
 using Mask = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
 
 // (height, width, channels) of two images of the same shape, (H, W) or (H, W, C).
-std::array<std::uint32_t, 3> shape_of(const Image& prediction, const Image& reference) {
+std::array<std::uint32_t, 3> shape_of(const ImageArray& prediction, const ImageArray& reference) {
   if (prediction.ndim() < 2 || prediction.ndim() > 3)
     throw InvalidArgument("images must be (height, width) or (height, width, channels) arrays");
   for (py::ssize_t i = 0; i < prediction.ndim(); ++i)
@@ -30,7 +30,7 @@ std::array<std::uint32_t, 3> shape_of(const Image& prediction, const Image& refe
           prediction.ndim() == 3 ? static_cast<std::uint32_t>(prediction.shape(2)) : 1u};
 }
 
-metrics::ImageComparison compare(const Image& prediction, const Image& reference, const py::object& device,
+metrics::ImageComparison compare(const ImageArray& prediction, const ImageArray& reference, const py::object& device,
                                  const py::object& mask = py::none()) {
   const auto [h, w, c] = shape_of(prediction, reference);
   std::vector<std::uint8_t> m;
@@ -50,10 +50,11 @@ metrics::ImageComparison compare(const Image& prediction, const Image& reference
 
 void bind_metrics(py::module_& root) {
   py::module_ m = root.def_submodule(
-      "metrics", "Image metrics computed in OpenCL: PSNR and SSIM on clamped sRGB, over the image and the object.");
+      "metrics",
+      "ImageArray metrics computed in OpenCL: PSNR and SSIM on clamped sRGB, over the image and the object.");
   m.def(
       "compare",
-      [](const Image& p, const Image& r, const py::object& device, const py::object& mask) {
+      [](const ImageArray& p, const ImageArray& r, const py::object& device, const py::object& mask) {
         const auto c = compare(p, r, device, mask);
         py::dict d;
         d["mse"] = c.mse;
@@ -81,7 +82,7 @@ void bind_metrics(py::module_& root) {
       "alpha: floaters or haze; 0 for a mask of 0 and 1). NaN where there is no object pixel.");
   m.def(
       "flip",
-      [](const Image& p, const Image& r, const std::string& range, double ppd, const py::object& start,
+      [](const ImageArray& p, const ImageArray& r, const std::string& range, double ppd, const py::object& start,
          const py::object& stop, std::uint32_t exposures, const py::object& device) {
         const auto [h, w, c] = shape_of(p, r);
         metrics::FlipOptions o;
@@ -123,7 +124,7 @@ void bind_metrics(py::module_& root) {
       [](const py::object& reference_alpha, const py::object& prediction_alpha) {
         const auto as_vector = [](const py::object& a) {
           if (a.is_none()) return std::pair<std::vector<float>, std::vector<py::ssize_t>>{};
-          const auto arr = a.cast<Image>();
+          const auto arr = a.cast<ImageArray>();
           if (arr.ndim() != 2) throw InvalidArgument("an alpha must be a (height, width) array");
           return std::pair{std::vector<float>(arr.data(), arr.data() + arr.size()),
                            std::vector<py::ssize_t>{arr.shape(0), arr.shape(1)}};
@@ -141,10 +142,12 @@ void bind_metrics(py::module_& root) {
       py::arg("reference_alpha"), py::arg("prediction_alpha") = py::none(),
       "The object's pixels: where the reference's or the prediction's alpha (H, W) exceeds 0.01.");
   m.def(
-      "psnr", [](const Image& p, const Image& r, const py::object& device) { return compare(p, r, device).psnr; },
+      "psnr",
+      [](const ImageArray& p, const ImageArray& r, const py::object& device) { return compare(p, r, device).psnr; },
       py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none());
   m.def(
-      "ssim", [](const Image& p, const Image& r, const py::object& device) { return compare(p, r, device).ssim; },
+      "ssim",
+      [](const ImageArray& p, const ImageArray& r, const py::object& device) { return compare(p, r, device).ssim; },
       py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none());
 }
 

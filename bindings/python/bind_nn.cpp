@@ -22,7 +22,7 @@ namespace {
 
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
-Json to_json(const py::object& config) {
+Json config_json(const py::object& config) {
   if (py::isinstance<py::str>(config)) return parse_json(config.cast<std::string>(), "the config string");
   return json_from_python(config);
 }
@@ -106,7 +106,7 @@ struct Owned {
 struct PyEncoding : Owned<nn::Encoding> {
   PyEncoding(const py::object& config, std::uint32_t n_input_dims, const py::object& dev, std::uint64_t seed) {
     device = device_arg(dev);
-    component = nn::create_encoding(to_json(config), n_input_dims);
+    component = nn::create_encoding(config_json(config), n_input_dims);
     workspace = component->make_workspace(device);
     init(seed);
   }
@@ -124,7 +124,7 @@ struct PyNetwork : Owned<nn::Network> {
   PyNetwork(const py::object& config, std::uint32_t n_in, std::uint32_t n_out, const py::object& dev,
             std::uint64_t seed) {
     device = device_arg(dev);
-    component = nn::create_network(to_json(config), n_in, n_out);
+    component = nn::create_network(config_json(config), n_in, n_out);
     workspace = component->make_workspace(device);
     init(seed);
   }
@@ -142,7 +142,7 @@ struct PyLoss {
   Device device;
   std::unique_ptr<nn::Loss> loss;
   PyLoss(const py::object& config, const py::object& dev)
-      : device(device_arg(dev)), loss(nn::create_loss(to_json(config))) {}
+      : device(device_arg(dev)), loss(nn::create_loss(config_json(config))) {}
   py::tuple evaluate(const FloatArray& prediction, const FloatArray& target, float scale) {
     const auto cols = prediction.ndim() == 2 ? static_cast<std::uint32_t>(prediction.shape(1)) : 0u;
     const std::uint32_t n = rows_of(prediction, cols, "prediction");
@@ -161,7 +161,7 @@ struct PyOptimizer {
   std::unique_ptr<nn::Optimizer> optimizer;
   Buffer<float> params, grads;
   PyOptimizer(const py::object& config, const py::object& dev)
-      : device(device_arg(dev)), optimizer(nn::create_optimizer(to_json(config))) {}
+      : device(device_arg(dev)), optimizer(nn::create_optimizer(config_json(config))) {}
   FloatArray step(const FloatArray& p, const FloatArray& g) {
     if (p.size() != g.size()) throw InvalidArgument("params and grads differ in size");
     const auto n = static_cast<std::size_t>(p.size());

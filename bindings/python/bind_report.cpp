@@ -115,7 +115,7 @@ std::vector<report::ViewResult> views_from(const py::iterable& items, bool need_
   return views;
 }
 
-Json to_json(const py::object& obj) {
+Json meta_json(const py::object& obj) {
   if (obj.is_none()) return Json::object();
   return json_from_python(obj);
 }
@@ -134,7 +134,7 @@ void bind_report(py::module_& m) {
         const std::string path = path_of(dir);
         const auto v = views_from(views, true, device);
         report::ReportOptions o;
-        o.meta = to_json(meta);
+        o.meta = meta_json(meta);
         o.sheet.max_rows = max_rows;
         o.sheet.error_scale = error_scale;
         o.write_predictions = write_predictions;

@@ -16,7 +16,7 @@ using render::kRayFloats;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using test::kPi;
 
 // A sky with a small bright sun: a strongly non-uniform pdf.
 EnvironmentLight test_sky(bool visible) { return EnvironmentLight::sky(32, 16, 3, 0.8f, visible); }

@@ -16,7 +16,7 @@ namespace relit {
 using nn::BatchMatrix;
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
+using test::kPi;
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

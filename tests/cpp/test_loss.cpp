@@ -30,7 +30,7 @@ Evaluated evaluate(const Device& d, const std::string& type, std::uint32_t batch
 }
 
 // Double-precision reference of one element's loss and its derivative w.r.t. p.
-std::pair<double, double> reference(const std::string& type, double p, double t) {
+std::pair<double, double> loss_reference(const std::string& type, double p, double t) {
   if (type == "L2") return {(p - t) * (p - t), 2 * (p - t)};
   if (type == "RelativeL2") {
     const double den = p * p + 0.01;
@@ -82,7 +82,7 @@ TEST(Loss, MatchesDoubleReferenceOnRandomInputsAndIgnoresPadding) {
       const auto got = evaluate(d, type, batch, cols, p, t, 2.0f);
       double sum = 0;
       for (std::size_t i = 0; i < p.size(); ++i) {
-        const auto [value, grad] = reference(type, p[i], t[i]);
+        const auto [value, grad] = loss_reference(type, p[i], t[i]);
         sum += value;
         const double expected = 2.0 * grad / p.size();
         EXPECT_NEAR(got.grad[i], expected, 1e-5 * (std::abs(expected) + 1e-3)) << type << " " << i;

@@ -21,7 +21,7 @@ namespace relit {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using test::kPi;
 
 double hg(double cos_owi, double g) {
   const double d = 1 + g * g + 2 * g * cos_owi;

@@ -13,7 +13,7 @@
 namespace relit {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
+using test::kPi;
 
 template <class E>
 std::string error_of(const Json& j) {

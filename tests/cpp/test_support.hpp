@@ -24,6 +24,8 @@ inline std::vector<Device> devices_under_test() {
   return Device::select_all(sel ? sel : "all");
 }
 
+inline constexpr double kPi = 3.14159265358979323846;
+
 /// The first device under test.
 inline Device test_device() { return devices_under_test().front(); }
 

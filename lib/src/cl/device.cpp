@@ -1,6 +1,7 @@
 // Device enumeration and selection.
 #include "cl/device_state.hpp"
 #include "cl/kernel_sources.hpp"
+#include "shared.hpp"
 
 #include <relit/cl/buffer.hpp>
 #include <relit/cl/program.hpp>
@@ -22,17 +23,14 @@ namespace relit {
 
 namespace {
 
+using ::relit::detail::lower;
+
 constexpr cl_int kPlatformNotFound = -1001;  // CL_PLATFORM_NOT_FOUND_KHR, returned by ICD loaders
 
 const char* const kNoPlatformHelp =
     "no OpenCL platform found. Install an OpenCL driver: on Debian/Ubuntu `apt-get install pocl-opencl-icd` "
     "(CPU), or your GPU vendor's OpenCL driver. Drivers register in /etc/OpenCL/vendors (or OCL_ICD_VENDORS); "
     "`clinfo -l` lists what the loader sees.";
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  return s;
-}
 
 std::string trim(std::string s) {
   while (!s.empty() && (std::isspace(static_cast<unsigned char>(s.back())) || s.back() == '\0')) s.pop_back();

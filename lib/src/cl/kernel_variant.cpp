@@ -4,6 +4,8 @@
 #include <relit/error.hpp>
 #include <relit/log.hpp>
 
+#include "shared.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
@@ -12,10 +14,7 @@ namespace relit {
 
 namespace {
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
-}
+using ::relit::detail::lower;
 
 }  // namespace
 

@@ -1,6 +1,8 @@
 // The config Reader: typed, range-checked access to JSON that records what it read.
 #include <relit/config.hpp>
 
+#include "shared.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <set>
@@ -50,10 +52,7 @@ namespace relit::config {
 
 namespace {
 
-std::string lower(std::string s) {
-  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
+using ::relit::detail::lower;
 
 std::string type_name(const Json& j) {
   if (j.is_boolean()) return "a boolean";

@@ -7,6 +7,8 @@
 #include <relit/parallel.hpp>
 #include <relit/version.hpp>
 
+#include "shared.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -25,7 +27,7 @@ namespace relit {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using ::relit::detail::kPi;
 
 Float3 unit_from(double u1, double u2) {
   const double z = 1 - 2 * u1, r = std::sqrt(std::max(0.0, 1 - z * z)), phi = 2 * kPi * u2;

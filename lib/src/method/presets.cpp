@@ -14,7 +14,7 @@ namespace relit::method {
 
 std::vector<std::string> preset_names() {
   std::vector<std::string> names;
-  for (const auto& f : detail::embedded_presets()) {
+  for (const auto& f : ::relit::detail::embedded_presets()) {
     std::string n = f.name;
     names.push_back(n.substr(0, n.size() - 5));  // drop ".json"
   }
@@ -30,7 +30,7 @@ std::string join(const std::vector<std::string>& v) {
 }  // namespace
 
 Json preset(const std::string& name) {
-  for (const auto& f : detail::embedded_presets())
+  for (const auto& f : ::relit::detail::embedded_presets())
     if (name + ".json" == f.name) return parse_json(f.text, "preset '" + name + "'");
   throw InvalidArgument("unknown preset '" + name + "'; presets: " + join(preset_names()) + " (or give a .json file)");
 }

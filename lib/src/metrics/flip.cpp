@@ -4,6 +4,8 @@
 #include <relit/error.hpp>
 #include <relit/metrics.hpp>
 
+#include "shared.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cfloat>
@@ -14,7 +16,8 @@ namespace relit::metrics {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using ::relit::detail::kPi;
+
 // The colour pipeline's contrast sensitivity filters (FLIP, HPG 2020, Table 1): a1 sqrt(pi / b1) exp(-pi^2 r^2 /
 // b1) + a2 sqrt(pi / b2) exp(-pi^2 r^2 / b2), r in degrees; achromatic and red-green are single Gaussians.
 constexpr double kCsfY[2] = {1.0, 0.0047}, kCsfCx[2] = {1.0, 0.0053};

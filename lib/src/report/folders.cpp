@@ -5,6 +5,8 @@
 #include <relit/log.hpp>
 #include <relit/report.hpp>
 
+#include "shared.hpp"
+
 #include <algorithm>
 #include <filesystem>
 #include <map>
@@ -16,6 +18,8 @@ namespace relit::report {
 
 namespace {
 
+using ::relit::detail::lower;
+
 // Image formats by preference when one name has several (relit eval writes r_000.png and r_000.exr): the float
 // formats first, as the PNGs are 8-bit sRGB previews.
 constexpr const char* kFormats[] = {".exr", ".pfm", ".hdr", ".png", ".jpg", ".jpeg"};
@@ -24,11 +28,6 @@ int rank_of(const std::string& ext) {
   for (int i = 0; i < int(std::size(kFormats)); ++i)
     if (ext == kFormats[i]) return i;
   return -1;
-}
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
 }
 
 // split/stem → file, for every image under `dir` (the split: the folder it lies in relative to `dir`, '/' → '_',

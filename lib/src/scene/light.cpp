@@ -2,13 +2,15 @@
 #include <relit/error.hpp>
 #include <relit/scene/light.hpp>
 
+#include "shared.hpp"
+
 #include <algorithm>
 #include <cmath>
 
 namespace relit {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
+using ::relit::detail::kPi;
 double luminance(double r, double g, double b) { return 0.2126 * r + 0.7152 * g + 0.0722 * b; }
 }  // namespace
 

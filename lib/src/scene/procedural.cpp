@@ -3,6 +3,8 @@
 #include <relit/error.hpp>
 #include <relit/scene/procedural.hpp>
 
+#include "shared.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -12,7 +14,7 @@ namespace relit {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using ::relit::detail::kPi;
 
 std::uint32_t hash3(int x, int y, int z, unsigned seed) {
   std::uint32_t h = seed * 0x9E3779B9u;
