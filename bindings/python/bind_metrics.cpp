@@ -50,8 +50,7 @@ metrics::ImageComparison compare(const ImageArray& prediction, const ImageArray&
 
 void bind_metrics(py::module_& root) {
   py::module_ m = root.def_submodule(
-      "metrics",
-      "ImageArray metrics computed in OpenCL: PSNR and SSIM on clamped sRGB, over the image and the object.");
+      "metrics", "Image metrics computed in OpenCL: PSNR and SSIM on clamped sRGB, over the image and the object.");
   m.def(
       "compare",
       [](const ImageArray& p, const ImageArray& r, const py::object& device, const py::object& mask) {
