@@ -81,9 +81,7 @@ py::array_t<float> render(const method::Model& model, const Camera& camera, cons
     py::gil_scoped_release release;
     img = method::render_image(model, camera, l, rs);
   }
-  py::array_t<float> a({img.height, img.width, img.channels});
-  std::copy(img.pixels.begin(), img.pixels.end(), a.mutable_data());
-  return a;
+  return image_to_numpy(img);
 }
 
 // A 1-D float32 array of `v`.

@@ -15,12 +15,10 @@ namespace py = pybind11;
 namespace relit::python {
 
 namespace {
-using ImageArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
-
 using Mask = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
 
 // (height, width, channels) of two images of the same shape, (H, W) or (H, W, C).
-std::array<std::uint32_t, 3> shape_of(const ImageArray& prediction, const ImageArray& reference) {
+std::array<std::uint32_t, 3> shape_of(const FloatArray& prediction, const FloatArray& reference) {
   if (prediction.ndim() < 2 || prediction.ndim() > 3)
     throw InvalidArgument("images must be (height, width) or (height, width, channels) arrays");
   for (py::ssize_t i = 0; i < prediction.ndim(); ++i)
@@ -30,7 +28,7 @@ std::array<std::uint32_t, 3> shape_of(const ImageArray& prediction, const ImageA
           prediction.ndim() == 3 ? static_cast<std::uint32_t>(prediction.shape(2)) : 1u};
 }
 
-metrics::ImageComparison compare(const ImageArray& prediction, const ImageArray& reference, const py::object& device,
+metrics::ImageComparison compare(const FloatArray& prediction, const FloatArray& reference, const py::object& device,
                                  const py::object& mask = py::none()) {
   const auto [h, w, c] = shape_of(prediction, reference);
   std::vector<std::uint8_t> m;
@@ -53,7 +51,7 @@ void bind_metrics(py::module_& root) {
       "metrics", "Image metrics computed in OpenCL: PSNR and SSIM on clamped sRGB, over the image and the object.");
   m.def(
       "compare",
-      [](const ImageArray& p, const ImageArray& r, const py::object& device, const py::object& mask) {
+      [](const FloatArray& p, const FloatArray& r, const py::object& device, const py::object& mask) {
         const auto c = compare(p, r, device, mask);
         py::dict d;
         d["mse"] = c.mse;
@@ -81,7 +79,7 @@ void bind_metrics(py::module_& root) {
       "alpha: floaters or haze; 0 for a mask of 0 and 1). NaN where there is no object pixel.");
   m.def(
       "flip",
-      [](const ImageArray& p, const ImageArray& r, const std::string& range, double ppd, const py::object& start,
+      [](const FloatArray& p, const FloatArray& r, const std::string& range, double ppd, const py::object& start,
          const py::object& stop, std::uint32_t exposures, const py::object& device) {
         const auto [h, w, c] = shape_of(p, r);
         metrics::FlipOptions o;
@@ -123,7 +121,7 @@ void bind_metrics(py::module_& root) {
       [](const py::object& reference_alpha, const py::object& prediction_alpha) {
         const auto as_vector = [](const py::object& a) {
           if (a.is_none()) return std::pair<std::vector<float>, std::vector<py::ssize_t>>{};
-          const auto arr = a.cast<ImageArray>();
+          const auto arr = a.cast<FloatArray>();
           if (arr.ndim() != 2) throw InvalidArgument("an alpha must be a (height, width) array");
           return std::pair{std::vector<float>(arr.data(), arr.data() + arr.size()),
                            std::vector<py::ssize_t>{arr.shape(0), arr.shape(1)}};
@@ -142,11 +140,11 @@ void bind_metrics(py::module_& root) {
       "The object's pixels: where the reference's or the prediction's alpha (H, W) exceeds 0.01.");
   m.def(
       "psnr",
-      [](const ImageArray& p, const ImageArray& r, const py::object& device) { return compare(p, r, device).psnr; },
+      [](const FloatArray& p, const FloatArray& r, const py::object& device) { return compare(p, r, device).psnr; },
       py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none());
   m.def(
       "ssim",
-      [](const ImageArray& p, const ImageArray& r, const py::object& device) { return compare(p, r, device).ssim; },
+      [](const FloatArray& p, const FloatArray& r, const py::object& device) { return compare(p, r, device).ssim; },
       py::arg("prediction"), py::arg("reference"), py::arg("device") = py::none());
 }
 

@@ -20,8 +20,6 @@ namespace relit::python {
 
 namespace {
 
-using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
-
 Json config_json(const py::object& config) {
   if (py::isinstance<py::str>(config)) return parse_json(config.cast<std::string>(), "the config string");
   return json_from_python(config);

@@ -24,8 +24,6 @@ namespace relit::python {
 
 namespace {
 
-using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
-
 // item[key] of a mapping or item.key of an object; None when absent.
 py::object field(const py::handle& item, const char* key) {
   if (py::isinstance<py::dict>(item)) {
@@ -171,9 +169,7 @@ void bind_report(py::module_& m) {
         Image sheet = report::contact_sheet(ptrs, o);
         if (srgb)
           for (float& x : sheet.pixels) x = linear_to_srgb(x);
-        py::array_t<float> a({sheet.height, sheet.width, sheet.channels});
-        std::copy(sheet.pixels.begin(), sheet.pixels.end(), a.mutable_data());
-        return a;
+        return image_to_numpy(sheet);
       },
       py::arg("views"), py::arg("max_rows") = 8, py::arg("error_scale") = 0.25f, py::arg("gutter") = 4,
       py::arg("srgb") = false, py::arg("labels") = true,

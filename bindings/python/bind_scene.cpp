@@ -18,16 +18,6 @@ namespace py = pybind11;
 
 namespace relit::python {
 
-namespace {
-
-py::array_t<float> to_numpy(const Image& img) {
-  py::array_t<float> a({img.height, img.width, img.channels});
-  std::copy(img.pixels.begin(), img.pixels.end(), a.mutable_data());
-  return a;
-}
-
-}  // namespace
-
 void bind_scene(py::module_& m) {
   py::class_<Progress>(m, "Progress", "Progress of a long operation, passed to progress callbacks.")
       .def_readonly("done", &Progress::done)
@@ -134,8 +124,8 @@ void bind_scene(py::module_& m) {
           py::gil_scoped_release release;
           r = PathTracer(dev, scene).render(cam, ls, rs, cb);
         }
-        if (with_variance) return py::make_tuple(to_numpy(r.image), to_numpy(r.variance));
-        return to_numpy(r.image);
+        if (with_variance) return py::make_tuple(image_to_numpy(r.image), image_to_numpy(r.variance));
+        return image_to_numpy(r.image);
       },
       py::arg("scene"), py::arg("camera") = py::none(), py::arg("lights") = py::none(), py::arg("spp") = 64,
       py::arg("seed") = 0, py::arg("max_bounces") = 0, py::arg("device") = py::none(), py::arg("progress") = py::none(),

@@ -1,13 +1,27 @@
-// Conversions shared by the bind_*.cpp files: JSON values, device arguments and progress callables.
+// Conversions shared by the bind_*.cpp files: float arrays, JSON values, device arguments and progress callables.
 #pragma once
 
+#include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
 #include <relit/cl/device.hpp>
 #include <relit/config.hpp>
+#include <relit/io/image.hpp>
 #include <relit/progress.hpp>
 
+#include <algorithm>
+
 namespace relit::python {
+
+/// A float array argument, C-contiguous (numpy converts other layouts and dtypes).
+using FloatArray = pybind11::array_t<float, pybind11::array::c_style | pybind11::array::forcecast>;
+
+/// An image as a (height, width, channels) float32 array (a copy of its pixels).
+inline pybind11::array_t<float> image_to_numpy(const Image& img) {
+  pybind11::array_t<float> a({img.height, img.width, img.channels});
+  std::copy(img.pixels.begin(), img.pixels.end(), a.mutable_data());
+  return a;
+}
 
 /// A Python value (dict, list, number, ...) as JSON, through Python's json module, which knows every builtin type.
 inline Json json_from_python(const pybind11::handle& obj) {
