@@ -230,6 +230,14 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 #define POS_SAVED(k, u) (((int16)(mk[u][k]) & LANE_BITS) != 0)
 #define SAVE_DZ(k, u, g) vstore16(g, 0, dzt + (k) * (size_t)padded + tile[u] * TILE)
 #define BACK_HIDDEN_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, POS_SAVED, SAVE_DZ)
+#if WIDTH % BWD_R
+#define BACK_HIDDEN                                                                \
+  for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) BACK_HIDDEN_BLOCK(BWD_R, k0) \
+  BACK_HIDDEN_BLOCK(WIDTH % BWD_R, WIDTH - WIDTH % BWD_R)
+#else
+#define BACK_HIDDEN \
+  for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) BACK_HIDDEN_BLOCK(BWD_R, k0)
+#endif
 
 // NR inputs k0.. of dL/dx from the input columns starting at column `xcol` of the layer (layer 0 or a skip),
 // rows xcol.. of its transposed block wt.
@@ -245,6 +253,18 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
           acc[r][u] += vload16(0, dxt[u] + ((k0) + r) * TILE);                                             \
     _Pragma("unroll") for (uint r = 0; r < (NR); ++r) _Pragma("unroll") for (uint u = 0; u < FWD_T; ++u)   \
         vstore16(acc[r][u], 0, dxt[u] + ((k0) + r) * TILE);                                                \
+  }
+
+// BODY with `nout` (the outputs of layer l, the rows of its transposed block) a compile-time constant: N_OUT for
+// the output layer, WIDTH below it. The blocks' weight rows are then constant offsets from one pointer, where
+// a run-time row length took a register per row or a reload from the stack per row and k.
+#define WITH_CONST_NOUT(l, BODY) \
+  if ((l) == N_HIDDEN) {         \
+    const uint nout = N_OUT;     \
+    BODY                         \
+  } else {                       \
+    const uint nout = WIDTH;     \
+    BODY                         \
   }
 
 #define BACK_INPUT(first_)                                                         \
@@ -299,7 +319,6 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
 #pragma unroll
   for (uint u = 0; u < FWD_T; ++u) dxt[u] = dx + tile[u] * (size_t)(N_IN * TILE);
   for (uint l = N_HIDDEN; l >= 1; --l) {
-    const uint nout = LAYER_OUT(l);
     __global const float* wt = wt_params + layer_offset(l);
     __private const float16* gin = g[l & 1];
     __private float16* gout = g[(l + 1) & 1];
@@ -309,12 +328,9 @@ __kernel void mlp_backward(const uint n_tiles, const uint padded, const uint bat
     __global float* dzt = dz + (size_t)(l - 1) * WIDTH * padded;
     if (want_dx && ((((uint)(SKIP_MASK)) >> l) & 1u)) {
       const uint xcol = WIDTH;
-      BACK_INPUT(l == TOP_SKIP)
+      WITH_CONST_NOUT(l, BACK_INPUT(l == TOP_SKIP))
     }
-    for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) BACK_HIDDEN_BLOCK(BWD_R, k0)
-#if WIDTH % BWD_R
-    BACK_HIDDEN_BLOCK(WIDTH % BWD_R, WIDTH - WIDTH % BWD_R)
-#endif
+    WITH_CONST_NOUT(l, BACK_HIDDEN)
   }
   if (want_dx) {
     const uint nout = WIDTH, xcol = 0;
@@ -443,12 +459,15 @@ __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len
 // and its DW_RJ dZ rows of a sub-chunk (32 KiB at 8 rows of 1 KiB samples) then compete for L1 with the
 // input rows it streams. Per block the input rows are transposed into the scratch, 16 x 16 at a time:
 //
-//   pack [v][s][0..15] = in[16 v + 0 .. 16 v + 15][s]      (NV = ceil(n_in / 16) column vectors, zero past n_in)
+//   pack [v][s][0..15] = in[16 v + 0 .. 16 v + 15][s]      (NV = ceil(n_dw / 16) column vectors, zero past n_dw,
+//                                                          the inputs without the ones row of the bias)
 //
 // The chunk's last block writes the work-item's dW rows into its partial slot.
 //
 // scratch (per work-item, scratch_stride floats apart, 64-byte aligned):
-//   cbuf  DW_ROWS x cstride   the work-item's dW rows, cstride = NV x 16 (a multiple of 16)
+//   cbuf  DW_ROWS x cstride   the work-item's dW rows without the bias column, cstride = NV x 16 (a multiple
+//                             of 16)
+//   bacc  DW_ROWS float16s    the bias gradients' accumulators (BIAS_SUMS)
 //   pack  NV x sub x 16       the transposed input rows of the current block of samples
 // ---------------------------------------------------------------------------------------------------------
 
@@ -511,12 +530,27 @@ inline void transpose16(float16* r) {
         vstore16(acc[i][r], 0, cb_ + i * (cs) + r * 16);                                                              \
   }
 
-// The n_rows x n_cols dW rows at src (src_stride floats apart) into the partial slot's rows at dst.
-inline void copy_dw_rows(__global float* restrict dst, __global const float* restrict src, const uint n_rows,
-                         const uint n_cols, const uint src_stride) {
-  for (uint j = 0; j < n_rows; ++j)
-    for (uint k = 0; k < n_cols; ++k) dst[j * n_cols + k] = src[(size_t)j * src_stride + k];
+// The n_rows x n_cols dW rows at src (src_stride floats apart) into the partial slot's rows at dst (dst_stride
+// floats apart); with a bias, the bias gradients' lane sums from bacc into the column after them.
+inline void copy_dw_rows(__global float* restrict dst, const uint dst_stride, __global const float* restrict src,
+                         const uint n_rows, const uint n_cols, const uint src_stride,
+                         __global const float16* restrict bacc) {
+  for (uint j = 0; j < n_rows; ++j) {
+    for (uint k = 0; k < n_cols; ++k) dst[j * dst_stride + k] = src[(size_t)j * src_stride + k];
+    if (BIAS) dst[j * dst_stride + n_cols] = relit_sum16(bacc[j]);
+  }
 }
+
+// The bias gradients of a layer are the sums of its dZ rows: added into float16 accumulators (lanes = a
+// sample's position in its tile), n_vec vectors of dZ row j at d + j * row_stride, in place of a column of
+// ones in the outer products (whose 16-column vector would cost DW_RJ FMAs per sample for that one column).
+#define BIAS_SUMS(bacc, n_rows, d, row_stride, n_vec, first)                       \
+  if (BIAS)                                                                        \
+    for (uint j_ = 0; j_ < (n_rows); ++j_) {                                       \
+      float16 b_ = (first) ? (float16)0.0f : (bacc)[j_];                           \
+      for (uint t_ = 0; t_ < (n_vec); ++t_) b_ += DZ_VEC((d), j_, row_stride, t_); \
+      (bacc)[j_] = b_;                                                             \
+    }
 
 // All nv column vectors of the DW_RJ rows at cb: blocks of DW_RK, then the last ones.
 #if DW_RK > 3
@@ -551,17 +585,20 @@ __kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, 
                                     const uint a_n, const uint x_row, const uint x_n, __global float* restrict partial,
                                     const uint partial_stride, const uint layer_off, __global float* restrict scratch,
                                     const uint scratch_stride) {
-  const uint n_in = a_n + x_n, nv = (n_in + 15) / 16, cstride = nv * 16;
+  // The outer products cover the n_dw inputs without the bias column (the ones row), whose gradients are the
+  // dZ rows' sums (BIAS_SUMS), kept in bacc.
+  const uint n_in = a_n + x_n, n_dw = n_in - BIAS, nv = (n_dw + 15) / 16, cstride = nv * 16;
   DW_WORK_ITEM
   __global float* cbuf = scratch + gid * scratch_stride;
-  __global float16* packed = (__global float16*)(cbuf + (size_t)DW_ROWS * cstride);
+  __global float16* bacc = (__global float16*)(cbuf + (size_t)DW_ROWS * cstride);
+  __global float16* packed = bacc + DW_ROWS;
 
   for (uint ss = s0; ss < s1; ss += sub) {
     const uint len = min(sub, s1 - ss);  // a multiple of 16, like chunk_len and n_samples
     const bool first = ss == s0;
 #define SRC_ACT(row) vload16(0, act + (size_t)(row)*padded + ss + t)
     for (uint v = 0; v < nv; ++v)
-      for (uint t = 0; t < len; t += 16) PACK_TILE(packed + (size_t)v * sub + t, v, n_in, a_n, a_row, x_row, SRC_ACT)
+      for (uint t = 0; t < len; t += 16) PACK_TILE(packed + (size_t)v * sub + t, v, n_dw, a_n, a_row, x_row, SRC_ACT)
     for (uint j0 = jr0; j0 < jr1; j0 += DW_RJ) {
       // Rows past the end repeat the last one; cbuf has room for them (DW_ROWS is a multiple of DW_RJ) and they
       // are never written out.
@@ -570,8 +607,11 @@ __kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, 
       for (uint i = 0; i < DW_RJ; ++i) dzp[i] = dzl + (size_t)min(j0 + i, jr1 - 1) * padded + ss;
       OUTER_ROW(cbuf + (size_t)(j0 - jr0) * cstride, cstride, packed, sub, len, first)
     }
+#define DZ_VEC(d, j, row_stride, t) vload16(0, (d) + (size_t)(j) * (row_stride) + 16 * (t))
+    BIAS_SUMS(bacc, jr1 - jr0, dzl + (size_t)jr0 * padded + ss, padded, len / 16, first)
+#undef DZ_VEC
   }
-  copy_dw_rows(out + jr0 * n_in, cbuf, jr1 - jr0, n_in, cstride);
+  copy_dw_rows(out + jr0 * n_in, n_in, cbuf, jr1 - jr0, n_dw, cstride, bacc);
 }
 #endif
 
@@ -618,17 +658,27 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 //   acc   acc16 float16s             the accumulators: one per parameter i (the parameters' layout), or with
 //                                    DW_VEC == 1 cacc (fused_outer_offset) and pk
 //   rows  N_ROWS x TRAIN_G float16   like `act`: x (N_IN), ones, h_0 .. h_(N_HIDDEN-1)
-//   g     2 x GMAX x TRAIN_G float16 dZ of the current layer and of the one below
+//   g     2 x GROWS x TRAIN_G float16 dZ of the current layer and of the one below (GROWS: GMAX rounded up
+//                                    to a multiple of DW_RJ, so that a dW block's rows past nout are there)
 //   sink  N_IN x TILE floats         dL/dx of repeated tiles (past the chunk's end) goes here
 // ---------------------------------------------------------------------------------------------------------
 #undef HS
 #define HS TRAIN_G
 #define N_ROWS (ACT_H0 + N_HIDDEN * WIDTH)
+#define GROWS ((GMAX + DW_RJ - 1) / DW_RJ * DW_RJ)
 
 // The fused training kernel: h_(l-1) from the scratch rows (hprev), dZ kept in gout only.
 #define POS_SCRATCH(k, u) (hprev[(k)*HS + (u)] > 0.0f)
 #define SAVE_NONE(k, u, g)
 #define TRAIN_BACK_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, POS_SCRATCH, SAVE_NONE)
+#if WIDTH % BWD_R
+#define TRAIN_BACK                                                                \
+  for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) TRAIN_BACK_BLOCK(BWD_R, k0) \
+  TRAIN_BACK_BLOCK(WIDTH % BWD_R, WIDTH - WIDTH % BWD_R)
+#else
+#define TRAIN_BACK \
+  for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) TRAIN_BACK_BLOCK(BWD_R, k0)
+#endif
 
 // The FWD_T tiles of sub-group s of the group starting at tile tb: tile indices (clamped to the chunk), x
 // and dL/dx pointers (the sink for tiles past the chunk's end).
@@ -645,11 +695,13 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 
 #if DW_VEC == 1
 // The outer-product weight gradients of the fused kernel: per layer, its rows padded to a multiple of DW_RJ,
-// each of round_up(stride, 16) floats, at fused_outer_offset(l) in the work-item's cacc; the layer's input
-// rows of the group transposed in pk ([v][s]: the 16 inputs 16 v .. of sample s of the group as a float16).
+// each of round_up(n_in, 16) floats (the bias column apart), then with a bias its LAYER_OUT(l) float16 bias
+// accumulators (BIAS_SUMS), at fused_outer_offset(l) in the work-item's cacc; the layer's input rows of the
+// group transposed in pk ([v][s]: the 16 inputs 16 v .. of sample s of the group as a float16).
 inline uint fused_outer_offset(const uint l) {
   uint off = 0;
-  for (uint m = 0; m < l; ++m) off += (LAYER_OUT(m) + DW_RJ - 1) / DW_RJ * DW_RJ * ((LAYER_STRIDE(m) + 15) / 16 * 16);
+  for (uint m = 0; m < l; ++m)
+    off += (LAYER_OUT(m) + DW_RJ - 1) / DW_RJ * DW_RJ * ((LAYER_IN(m) + 15) / 16 * 16) + BIAS * LAYER_OUT(m) * 16;
   return off;
 }
 
@@ -673,10 +725,12 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
   __global float16* pk = accv + fused_outer_offset(N_HIDDEN + 1) / 16;
 #endif
   __global float16* gbuf = rows + N_ROWS * TRAIN_G;
-  __global float* sink = (__global float*)(gbuf + 2 * GMAX * TRAIN_G);
+  __global float* sink = (__global float*)(gbuf + 2 * GROWS * TRAIN_G);
   const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   __global float* out = partial + c * (size_t)partial_stride;
   for (uint u = 0; u < TRAIN_G; ++u) rows[N_IN * TRAIN_G + u] = (float16)1.0f;
+  // Finite values in the dZ rows a dW block reads past nout (the other layers' dZ later on).
+  for (uint i = 0; i < 2 * GROWS * TRAIN_G; ++i) gbuf[i] = (float16)0.0f;
   const uint save = 0, padded = 0;  // the forward blocks keep their activations in the scratch only
   __global float* st = 0;
   __global ushort* mask = 0;
@@ -707,7 +761,7 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
 
     // dZ of the output layer; zero for samples past the batch and for tiles past the chunk's end.
     {
-      __global float16* gout = gbuf + (N_HIDDEN & 1) * GMAX * HS;
+      __global float16* gout = gbuf + (N_HIDDEN & 1) * GROWS * HS;
       for (uint u = 0; u < TRAIN_G; ++u) {
         const size_t t_ = tb + u, tu = min(t_, t_end - 1);
         const int16 valid = ((int16)((int)(tu * TILE)) + lane < (int16)((int)batch)) & (int16)(t_ < t_end ? -1 : 0);
@@ -731,25 +785,30 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
 #if DW_VEC == 1
       {  // dW_l += dZ_l x input_l over the group's samples, in the outer-product form (mlp_weight_grad_outer):
          // the group's input rows transposed into pk, then DW_RJ x DW_RK blocks of the float dW rows in cacc.
-        __global const float16* gin = gbuf + (l & 1) * GMAX * HS;
-        const uint nv = (stride + 15) / 16, cs = nv * 16;
+        __global const float16* gin = gbuf + (l & 1) * GROWS * HS;
+        const uint n_dw = stride - BIAS, nv = (n_dw + 15) / 16, cs = nv * 16;
         __global float* cb_l = cacc + fused_outer_offset(l);
+        __global float16* bacc = (__global float16*)(cb_l + (size_t)(nout + DW_RJ - 1) / DW_RJ * DW_RJ * cs);
 #define SRC_ROWS(row) rows[(row)*HS + u]
         for (uint v = 0; v < nv; ++v)
           for (uint u = 0; u < TRAIN_G; ++u)
-            PACK_TILE(pk + (size_t)v * TRAIN_G * TILE + u * TILE, v, stride, a_n, a_row, x_row, SRC_ROWS)
+            PACK_TILE(pk + (size_t)v * TRAIN_G * TILE + u * TILE, v, n_dw, a_n, a_row, x_row, SRC_ROWS)
         for (uint j0 = 0; j0 < nout; j0 += DW_RJ) {
-          // dZ row j0 + i over the group's samples (past the last row: the last row, not written out).
+          // dZ row j0 + i over the group's samples, HS float16s apart: constant offsets from one pointer (rows
+          // past nout hold whatever is there; their dW rows are not written out).
           __global const float* dzp[DW_RJ];
 #pragma unroll
-          for (uint i = 0; i < DW_RJ; ++i) dzp[i] = (__global const float*)(gin + min(j0 + i, nout - 1) * HS);
+          for (uint i = 0; i < DW_RJ; ++i) dzp[i] = (__global const float*)(gin + (j0 + i) * HS);
           OUTER_ROW(cb_l + (size_t)j0 * cs, cs, pk, TRAIN_G * TILE, TRAIN_G * TILE, first_group)
         }
-        if (last_group) copy_dw_rows(out + layer_offset(l), cb_l, nout, stride, cs);
+#define DZ_VEC(d, j, row_stride, t) (d)[(j) * (row_stride) + (t)]
+        BIAS_SUMS(bacc, nout, gin, HS, TRAIN_G, first_group)
+#undef DZ_VEC
+        if (last_group) copy_dw_rows(out + layer_offset(l), stride, cb_l, nout, n_dw, cs, bacc);
       }
 #else
       {  // dW_l += dZ_l x input_l over the group's TRAIN_G tiles, DW_RJ x DW_RK blocks.
-        __global const float16* gin = gbuf + (l & 1) * GMAX * HS;
+        __global const float16* gin = gbuf + (l & 1) * GROWS * HS;
         __global float16* acc_l = accv + layer_offset(l);
         __global float* out_l = out + layer_offset(l);
         for (uint j0 = 0; j0 < nout; j0 += DW_RJ)
@@ -798,18 +857,15 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
       // dL/dx (layer 0 and skips) and dZ of layer l - 1, FWD_T tiles at a time.
       for (uint sg = 0; sg < TRAIN_G / FWD_T; ++sg) {
         SUB_TILES(sg)
-        __global const float16* gin = gbuf + (l & 1) * GMAX * HS + sg * FWD_T;
+        __global const float16* gin = gbuf + (l & 1) * GROWS * HS + sg * FWD_T;
         if (want_dx && (l == 0 || lskip)) {
           const uint xcol = l == 0 ? 0 : WIDTH;
-          BACK_INPUT(l == TOP_SKIP)
+          WITH_CONST_NOUT(l, BACK_INPUT(l == TOP_SKIP))
         }
         if (l > 0) {
           __global const float16* hprev = rows + a_row * HS + sg * FWD_T;
-          __global float16* gout = gbuf + ((l + 1) & 1) * GMAX * HS + sg * FWD_T;
-          for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) TRAIN_BACK_BLOCK(BWD_R, k0)
-#if WIDTH % BWD_R
-          TRAIN_BACK_BLOCK(WIDTH % BWD_R, WIDTH - WIDTH % BWD_R)
-#endif
+          __global float16* gout = gbuf + ((l + 1) & 1) * GROWS * HS + sg * FWD_T;
+          WITH_CONST_NOUT(l, TRAIN_BACK)
         }
       }
       if (l == 0) break;

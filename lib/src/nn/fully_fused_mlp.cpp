@@ -513,16 +513,17 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     const std::size_t chunks = std::clamp<std::size_t>(wanted, 1, groups);
     const std::uint32_t chunk_tiles = static_cast<std::uint32_t>((groups + chunks - 1) / chunks) * t;
     const std::uint32_t n_chunks = (n_tiles + chunk_tiles - 1) / chunk_tiles;
-    const std::size_t rows = m_n_input + 1 + std::size_t(m_n_hidden) * m_width + 2 * std::max(m_width, m_n_output);
+    const std::size_t rows = m_n_input + 1 + std::size_t(m_n_hidden) * m_width +
+                             2 * round_up(std::max(m_width, m_n_output), k.blocking.dw_rows);
     // The accumulators (kernels/mlp.cl, mlp_train_fused), in float16s: one per parameter, or with the
     // outer-product weight gradients every layer's dW rows (rows padded to a multiple of dw_rows, columns to 16)
     // and the group's transposed input rows.
     std::size_t acc16 = np;
     if (k.blocking.dw_vector == 1) {
       std::size_t floats = 0, vectors = 0;
-      for (std::uint32_t l = 0; l <= m_n_hidden; ++l) {
-        const std::size_t cols = round_up(layer_stride(l), 16);
-        floats += round_up(layer_outputs(l), k.blocking.dw_rows) * cols;
+      for (std::uint32_t l = 0; l <= m_n_hidden; ++l) {  // the bias column apart (its own accumulators)
+        const std::size_t cols = round_up(layer_inputs(l), 16);
+        floats += round_up(layer_outputs(l), k.blocking.dw_rows) * cols + (m_bias ? 16 * layer_outputs(l) : 0);
         vectors = std::max(vectors, cols / 16);
       }
       acc16 = floats / 16 + vectors * t * kBatchTile;
@@ -563,12 +564,13 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
                                          kBatchTile * kBatchTile);
   if (ws->partial.size() < std::size_t(plan.n_chunks) * np)
     ws->partial = Buffer<float>(device, std::size_t(plan.n_chunks) * np);
-  // The outer-product form (dw_vector 1): per work-item its dW rows and the transposed input rows of one block
-  // of plan.sub samples (kernels/mlp.cl, mlp_weight_grad_outer).
+  // The outer-product form (dw_vector 1): per work-item its dW rows (the bias column apart), a float16 bias
+  // accumulator per row and the transposed input rows of one block of plan.sub samples (kernels/mlp.cl,
+  // mlp_weight_grad_outer).
   std::uint32_t dw_stride = 0;
   if (outer) {
-    const std::size_t cstride = round_up(max_in, 16);
-    dw_stride = static_cast<std::uint32_t>(round_up(k.blocking.dw_region * cstride + cstride * plan.sub, 16));
+    const std::size_t cstride = round_up(max_in - 1, 16);
+    dw_stride = static_cast<std::uint32_t>(round_up(k.blocking.dw_region * (cstride + 16) + cstride * plan.sub, 16));
     const std::uint32_t max_out = std::max(m_width, m_n_output);
     const std::size_t items =
         std::size_t(plan.n_chunks) * ((max_out + k.blocking.dw_region - 1) / k.blocking.dw_region);
