@@ -47,6 +47,15 @@
 
 MLP_DEFINE_ACTIVATIONS(float16, apply_act, act_grad)
 
+#if defined(__clang__) && defined(__has_builtin)
+#if __has_builtin(__builtin_nontemporal_store) && !defined(RELIT_NO_STREAM)
+#define STREAM16(v, p) __builtin_nontemporal_store((v), (__global float16*)(p))
+#endif
+#endif
+#ifndef STREAM16
+#define STREAM16(v, p) vstore16((v), 0, (p))
+#endif
+
 // The saved ReLU masks: bit s of a mask word is set where sample s of its tile has h > 0. The separate backward
 // kernel reads these 2 bytes per feature and tile instead of the saved activation's 64 (docs/networks.md): its
 // ReLU mask then comes from a contiguous run per work-item, not from one activation row per feature.
@@ -134,7 +143,7 @@ inline float16 hidden_act(float16 z) {
       const float16 y = hidden_act(acc[r][u]);                                                             \
       hout[((j0) + r) * HS + u] = y;                                                                       \
       if (save) {                                                                                          \
-        vstore16(y, 0, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);                                 \
+        STREAM16(y, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);                                    \
         if (HIDDEN_ACT == ACT_RELU) MASK_ROW(mask, l, tile[u])[(j0) + r] = lane_mask(y > 0.0f);            \
       }                                                                                                    \
     }                                                                                                      \
@@ -228,7 +237,7 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 
 // The separate backward kernel: h_(l-1) > 0 from the saved masks, dZ stored for the weight gradients.
 #define POS_SAVED(k, u) (((int16)(mk[u][k]) & LANE_BITS) != 0)
-#define SAVE_DZ(k, u, g) vstore16(g, 0, dzt + (k) * (size_t)padded + tile[u] * TILE)
+#define SAVE_DZ(k, u, g) STREAM16(g, dzt + (k) * (size_t)padded + tile[u] * TILE)
 #define BACK_HIDDEN_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, POS_SAVED, SAVE_DZ)
 #if WIDTH % BWD_R
 #define BACK_HIDDEN                                                                \
