@@ -44,6 +44,9 @@
 #ifndef DW_RK
 #define DW_RK 2
 #endif
+// With the outer-product weight gradients (DW_VEC 1) the training forward saves its activations transposed
+// (SAVE_T below; the widths are multiples of 16).
+#define ACT_T (DW_VEC == 1)
 
 MLP_DEFINE_ACTIVATIONS(float16, apply_act, act_grad)
 
@@ -109,9 +112,47 @@ inline float16 hidden_act(float16 z) {
   size_t tile[FWD_T];                   \
   _Pragma("unroll") for (uint u_ = 0; u_ < FWD_T; ++u_) tile[u_] = min((item)*FWD_T + u_, (size_t)(n_tiles)-1);
 
+// One stage of the 16 x 16 transpose: the perfect shuffle of the pairs (r[i], r[i + 8]). Element (vector v,
+// lane l) moves to the position whose 8 bits (v, l) are those of (v, l) rotated left by one, so four stages
+// swap v and l.
+#define SHUFFLE_LO(a, b) \
+  (float16)(a.s0, b.s0, a.s1, b.s1, a.s2, b.s2, a.s3, b.s3, a.s4, b.s4, a.s5, b.s5, a.s6, b.s6, a.s7, b.s7)
+#define SHUFFLE_HI(a, b) \
+  (float16)(a.s8, b.s8, a.s9, b.s9, a.sa, b.sa, a.sb, b.sb, a.sc, b.sc, a.sd, b.sd, a.se, b.se, a.sf, b.sf)
+
+inline void transpose16(float16* r) {
+#pragma unroll
+  for (uint stage = 0; stage < 4; ++stage) {
+    float16 t[16];
+#pragma unroll
+    for (uint i = 0; i < 8; ++i) {
+      t[2 * i] = SHUFFLE_LO(r[i], r[i + 8]);
+      t[2 * i + 1] = SHUFFLE_HI(r[i], r[i + 8]);
+    }
+#pragma unroll
+    for (uint i = 0; i < 16; ++i) r[i] = t[i];
+  }
+}
+
 // Private and scratch arrays hold feature f of tile u at [f * HS + u]: HS = FWD_T in the forward and backward
 // kernels, TRAIN_G in the fused training kernel (which runs the blocks on FWD_T of its TRAIN_G tiles at a time).
 #define HS FWD_T
+
+// The transposed training workspace (ACT_T): vector v of `act` holds 16 input columns of the weight gradients
+// for every sample, [v][s][16] (vector v at act + v * padded * 16 floats): ACT_XV vectors of x (zero past
+// N_IN), then WIDTH / 16 per hidden layer; no ones row (the bias gradients are dZ sums). These are the
+// outer-product weight gradients' operands as they are (mlp_weight_grad_outer), which otherwise transposes
+// every block of feature-major rows it reads. SAVE_T(v, t, SRC, VALID) transposes the 16 values SRC of tile t
+// (SRC and VALID use i_, the column in the vector) and stores them to vector v.
+#define ACT_XV ((N_IN + 15) / 16)
+#define SAVE_T(v, t, SRC, VALID)                                                                 \
+  {                                                                                              \
+    float16 r_[16];                                                                              \
+    _Pragma("unroll") for (uint i_ = 0; i_ < 16; ++i_) r_[i_] = (VALID) ? (SRC) : (float16)0.0f; \
+    transpose16(r_);                                                                             \
+    __global float* d_ = act + ((size_t)(v)*padded + (t)*TILE) * 16;                             \
+    _Pragma("unroll") for (uint i_ = 0; i_ < 16; ++i_) STREAM16(r_[i_], d_ + i_ * 16);           \
+  }
 
 // ---------------------------------------------------------------------------------------------------------
 // Forward. One work-item = FWD_T tiles of 16 samples; all layers in registers/private memory (per feature k
@@ -143,7 +184,7 @@ inline float16 hidden_act(float16 z) {
       const float16 y = hidden_act(acc[r][u]);                                                             \
       hout[((j0) + r) * HS + u] = y;                                                                       \
       if (save) {                                                                                          \
-        STREAM16(y, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);                                    \
+        if (!ACT_T) STREAM16(y, st + ((j0) + r) * (size_t)padded + tile[u] * TILE);                        \
         if (HIDDEN_ACT == ACT_RELU) MASK_ROW(mask, l, tile[u])[(j0) + r] = lane_mask(y > 0.0f);            \
       }                                                                                                    \
     }                                                                                                      \
@@ -175,12 +216,19 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
   }
 
   if (save) {  // the weight gradients' inputs of layer 0 (and skips): x and the bias column of ones
+#if ACT_T
+#pragma unroll
+    for (uint u = 0; u < FWD_T; ++u)
+      for (uint v = 0; v < ACT_XV; ++v)
+        SAVE_T(v, tile[u], vload16(0, xt[u] + min(16 * v + i_, N_IN - 1u) * TILE), 16 * v + i_ < N_IN)
+#else
 #pragma unroll
     for (uint u = 0; u < FWD_T; ++u) {
       for (uint k = 0; k < N_IN; ++k)
         vstore16(vload16(0, xt[u] + k * TILE), 0, act + (size_t)k * padded + tile[u] * TILE);
       vstore16((float16)1.0f, 0, act + (size_t)N_IN * padded + tile[u] * TILE);
     }
+#endif
   }
   float16 h[2][WIDTH * FWD_T];
   for (uint l = 0; l < N_HIDDEN; ++l) {
@@ -194,6 +242,13 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
     for (uint j0 = 0; j0 + FWD_R <= WIDTH; j0 += FWD_R) HIDDEN_BLOCK(FWD_R, j0)
 #if WIDTH % FWD_R
     HIDDEN_BLOCK(WIDTH % FWD_R, WIDTH - WIDTH % FWD_R)
+#endif
+#if ACT_T
+    if (save)
+#pragma unroll
+      for (uint u = 0; u < FWD_T; ++u)
+        for (uint v = 0; v < WIDTH / 16; ++v)
+          SAVE_T(ACT_XV + l * (WIDTH / 16) + v, tile[u], hout[(16 * v + i_) * HS + u], true)
 #endif
   }
   {
@@ -466,45 +521,25 @@ __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len
 // them, and the accumulators are added to the work-item's copy of its dW rows (`cbuf`, rows padded to
 // NV x 16 floats) after each block. The lane form must keep its blocks long to amortise its horizontal sums,
 // and its DW_RJ dZ rows of a sub-chunk (32 KiB at 8 rows of 1 KiB samples) then compete for L1 with the
-// input rows it streams. Per block the input rows are transposed into the scratch, 16 x 16 at a time:
+// input rows it streams. The input vectors are `act` as the training forward pass saved it (SAVE_T), already
+// transposed:
 //
-//   pack [v][s][0..15] = in[16 v + 0 .. 16 v + 15][s]      (NV = ceil(n_dw / 16) column vectors, zero past n_dw,
-//                                                          the inputs without the ones row of the bias)
+//   act [v][s][0..15] = in[16 v + 0 .. 16 v + 15][s]      (NV = ceil(n_dw / 16) column vectors, zero past n_dw,
+//                                                         the inputs without the ones row of the bias)
 //
-// The chunk's last block writes the work-item's dW rows into its partial slot.
+// (Transposing feature-major rows here, block by block, cost a fifth of this kernel's time, its loads missing
+// to memory; the forward pass transposes values it holds in registers.) The chunk's last block writes the
+// work-item's dW rows into its partial slot.
 //
 // scratch (per work-item, scratch_stride floats apart, 64-byte aligned):
 //   cbuf  DW_ROWS x cstride   the work-item's dW rows without the bias column, cstride = NV x 16 (a multiple
 //                             of 16)
 //   bacc  DW_ROWS float16s    the bias gradients' accumulators (BIAS_SUMS)
-//   pack  NV x sub x 16       the transposed input rows of the current block of samples
 // ---------------------------------------------------------------------------------------------------------
 
-// One stage of the 16 x 16 transpose: the perfect shuffle of the pairs (r[i], r[i + 8]). Element (vector v,
-// lane l) moves to the position whose 8 bits (v, l) are those of (v, l) rotated left by one, so four stages
-// swap v and l.
-#define SHUFFLE_LO(a, b) \
-  (float16)(a.s0, b.s0, a.s1, b.s1, a.s2, b.s2, a.s3, b.s3, a.s4, b.s4, a.s5, b.s5, a.s6, b.s6, a.s7, b.s7)
-#define SHUFFLE_HI(a, b) \
-  (float16)(a.s8, b.s8, a.s9, b.s9, a.sa, b.sa, a.sb, b.sb, a.sc, b.sc, a.sd, b.sd, a.se, b.se, a.sf, b.sf)
-
-inline void transpose16(float16* r) {
-#pragma unroll
-  for (uint stage = 0; stage < 4; ++stage) {
-    float16 t[16];
-#pragma unroll
-    for (uint i = 0; i < 8; ++i) {
-      t[2 * i] = SHUFFLE_LO(r[i], r[i + 8]);
-      t[2 * i + 1] = SHUFFLE_HI(r[i], r[i + 8]);
-    }
-#pragma unroll
-    for (uint i = 0; i < 16; ++i) r[i] = t[i];
-  }
-}
-
 // One tile of 16 samples of the inputs 16 v .. 16 v + 15 of a layer, transposed into dst[0 .. 15] (sample i's
-// 16 inputs as one float16). Input k is row a_row + k of its source for k < a_n, else row x_row + k - a_n;
-// SRC(row) loads the tile's float16 of a row; inputs past n_in are zero.
+// 16 inputs as one float16; the fused training kernel's dW blocks). Input k is row a_row + k of its source for k < a_n,
+// else row x_row + k - a_n; SRC(row) loads the tile's float16 of a row; inputs past n_in are zero.
 #define PACK_TILE(dst, v, n_in, a_n, a_row, x_row, SRC)                           \
   {                                                                               \
     float16 r_[16];                                                               \
@@ -518,18 +553,19 @@ inline void transpose16(float16* r) {
   }
 
 // The DW_RJ x NRK block of column vectors v0.. of the dW rows at cb (row i at cb + i * cs) over n samples:
-// the input vectors at px ([v][s], pstride float16s per vector), dZ row i at dzp[i]; `first` starts the
-// accumulators from zero instead of the stored rows.
-#define OUTER_BLOCK(NRK, v0, cb, cs, px, pstride, n, first)                                                           \
+// input vector v's samples at VEC(v) (float16s), dZ row i at dzp[i]; `first` starts the accumulators from
+// zero instead of the stored rows.
+#define OUTER_BLOCK(NRK, v0, cb, cs, VEC, n, first)                                                                   \
   {                                                                                                                   \
     __global float* cb_ = (cb) + (v0)*16;                                                                             \
-    __global const float16* px_ = (px) + (size_t)(v0) * (pstride);                                                    \
+    __global const float16* px_[NRK];                                                                                 \
+    _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) px_[r] = VEC((v0) + r);                                        \
     float16 acc[DW_RJ][NRK];                                                                                          \
     _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) acc[i][r] = \
         (first) ? (float16)0.0f : vload16(0, cb_ + i * (cs) + r * 16);                                                \
     for (uint s = 0; s < (n); ++s) {                                                                                  \
       float16 xv[NRK];                                                                                                \
-      _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) xv[r] = px_[r * (pstride) + s];                              \
+      _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) xv[r] = px_[r][s];                                           \
       _Pragma("unroll") for (uint i = 0; i < DW_RJ; ++i) {                                                            \
         const float16 d = (float16)(dzp[i][s]);                                                                       \
         _Pragma("unroll") for (uint r = 0; r < (NRK); ++r) acc[i][r] = fma(d, xv[r], acc[i][r]);                      \
@@ -576,16 +612,16 @@ inline void copy_dw_rows(__global float* restrict dst, const uint dst_stride, __
 #else
 #define OUTER_LAST_2(...)
 #endif
-#define OUTER_ROW(cb, cs, px, pstride, n, first)                                                \
-  {                                                                                             \
-    uint v0 = 0;                                                                                \
-    for (; v0 + DW_RK <= nv; v0 += DW_RK) OUTER_BLOCK(DW_RK, v0, cb, cs, px, pstride, n, first) \
-    switch (nv - v0) {                                                                          \
-      OUTER_LAST_3(v0, cb, cs, px, pstride, n, first)                                           \
-      OUTER_LAST_2(v0, cb, cs, px, pstride, n, first)                                           \
-      case 1: OUTER_BLOCK(1, v0, cb, cs, px, pstride, n, first) break;                          \
-      default: break;                                                                           \
-    }                                                                                           \
+#define OUTER_ROW(cb, cs, VEC, n, first)                                                \
+  {                                                                                     \
+    uint v0 = 0;                                                                        \
+    for (; v0 + DW_RK <= nv; v0 += DW_RK) OUTER_BLOCK(DW_RK, v0, cb, cs, VEC, n, first) \
+    switch (nv - v0) {                                                                  \
+      OUTER_LAST_3(v0, cb, cs, VEC, n, first)                                           \
+      OUTER_LAST_2(v0, cb, cs, VEC, n, first)                                           \
+      case 1: OUTER_BLOCK(1, v0, cb, cs, VEC, n, first) break;                          \
+      default: break;                                                                   \
+    }                                                                                   \
   }
 
 __kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, const uint n_chunks, const uint sub,
@@ -600,21 +636,21 @@ __kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, 
   DW_WORK_ITEM
   __global float* cbuf = scratch + gid * scratch_stride;
   __global float16* bacc = (__global float16*)(cbuf + (size_t)DW_ROWS * cstride);
-  __global float16* packed = bacc + DW_ROWS;
 
   for (uint ss = s0; ss < s1; ss += sub) {
     const uint len = min(sub, s1 - ss);  // a multiple of 16, like chunk_len and n_samples
     const bool first = ss == s0;
-#define SRC_ACT(row) vload16(0, act + (size_t)(row)*padded + ss + t)
-    for (uint v = 0; v < nv; ++v)
-      for (uint t = 0; t < len; t += 16) PACK_TILE(packed + (size_t)v * sub + t, v, n_dw, a_n, a_row, x_row, SRC_ACT)
+    // The block's input vectors as the forward pass saved them (SAVE_T): vector v of the layer's inputs is
+    // vector a_row + v of act for the a_n / 16 activation vectors, then x_row + ... (x of layer 0 and skips).
+#define ACT_VEC(v) \
+  ((__global const float16*)act + ((size_t)((v) < a_n / 16 ? a_row + (v) : x_row + (v)-a_n / 16) * padded + ss))
     for (uint j0 = jr0; j0 < jr1; j0 += DW_RJ) {
       // Rows past the end repeat the last one; cbuf has room for them (DW_ROWS is a multiple of DW_RJ) and they
       // are never written out.
       __global const float* dzp[DW_RJ];
 #pragma unroll
       for (uint i = 0; i < DW_RJ; ++i) dzp[i] = dzl + (size_t)min(j0 + i, jr1 - 1) * padded + ss;
-      OUTER_ROW(cbuf + (size_t)(j0 - jr0) * cstride, cstride, packed, sub, len, first)
+      OUTER_ROW(cbuf + (size_t)(j0 - jr0) * cstride, cstride, ACT_VEC, len, first)
     }
 #define DZ_VEC(d, j, row_stride, t) vload16(0, (d) + (size_t)(j) * (row_stride) + 16 * (t))
     BIAS_SUMS(bacc, jr1 - jr0, dzl + (size_t)jr0 * padded + ss, padded, len / 16, first)
@@ -808,7 +844,8 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
           __global const float* dzp[DW_RJ];
 #pragma unroll
           for (uint i = 0; i < DW_RJ; ++i) dzp[i] = (__global const float*)(gin + (j0 + i) * HS);
-          OUTER_ROW(cb_l + (size_t)j0 * cs, cs, pk, TRAIN_G * TILE, TRAIN_G * TILE, first_group)
+#define PK_VEC(v) (pk + (size_t)(v)*TRAIN_G * TILE)
+          OUTER_ROW(cb_l + (size_t)j0 * cs, cs, PK_VEC, TRAIN_G * TILE, first_group)
         }
 #define DZ_VEC(d, j, row_stride, t) (d)[(j) * (row_stride) + (t)]
         BIAS_SUMS(bacc, nout, gin, HS, TRAIN_G, first_group)

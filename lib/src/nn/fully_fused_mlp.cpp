@@ -169,6 +169,9 @@ struct FullyFusedMLP::Kernels {
   KernelChoice choice;
   Blocking blocking;  // choice.blocking
   bool workgroup = false;
+  // The training workspace's activations transposed for the outer-product weight gradients (kernels/mlp.cl,
+  // SAVE_T): the SIMD kernels with dw_vector 1 (the widths are multiples of 16).
+  bool act_transposed = false;
   Kernel forward, backward, weight_grad, reduce, train, transpose;  // transpose: the SIMD kernels only
   std::size_t local_forward = 0, local_backward = 0, local_weight_grad = 0, local_reduce = 0;
 };
@@ -363,6 +366,7 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
                     {"DW_RK", std::to_string(b.dw_cols)},
                     {"DW_ROWS", std::to_string(b.dw_region)},
                     {"TRAIN_G", std::to_string(b.train_group)}});
+    k->act_transposed = b.dw_vector == 1;
     const Program program = device.program("mlp.cl", defines);
     k->forward = program.kernel("mlp_forward");
     k->backward = program.kernel("mlp_backward");
@@ -447,9 +451,15 @@ void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const 
     launch_forward(device, params, input, output, nullptr, 0);
     return;
   }
-  if (input.padded() > ws->padded || ws->act.empty()) {  // grow only: a training loop reuses its buffers
+  // Floats per sample of act: the feature-major rows [x, ones, h_0, ...], or the transposed vectors of x and
+  // of every hidden layer (kernels/mlp.cl, SAVE_T).
+  const std::size_t act_floats = kernels(device).act_transposed
+                                     ? round_up(m_n_input, 16) + std::size_t(m_width) * m_n_hidden
+                                     : std::size_t(m_width) * m_n_hidden + m_n_input + 1;
+  if (input.padded() > ws->padded || ws->act.size() < std::size_t(ws->padded) * act_floats) {
+    // Grow only: a training loop reuses its buffers.
     ws->padded = std::max(ws->padded, input.padded());
-    ws->act = Buffer<float>(device, std::size_t(ws->padded) * (std::size_t(m_width) * m_n_hidden + m_n_input + 1));
+    ws->act = Buffer<float>(device, std::size_t(ws->padded) * act_floats);
     ws->dz = Buffer<float>(device, std::size_t(ws->padded) * (std::size_t(m_width) * m_n_hidden + m_n_output));
   }
   // The SIMD kernels' ReLU masks, laid out for ws->padded samples; sized apart from act and dz so that a workspace
@@ -564,13 +574,13 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
                                          kBatchTile * kBatchTile);
   if (ws->partial.size() < std::size_t(plan.n_chunks) * np)
     ws->partial = Buffer<float>(device, std::size_t(plan.n_chunks) * np);
-  // The outer-product form (dw_vector 1): per work-item its dW rows (the bias column apart), a float16 bias
-  // accumulator per row and the transposed input rows of one block of plan.sub samples (kernels/mlp.cl,
-  // mlp_weight_grad_outer).
+  // The outer-product form (dw_vector 1): per work-item its dW rows (the bias column apart) and a float16 bias
+  // accumulator per row (kernels/mlp.cl, mlp_weight_grad_outer); it walks its chunk in blocks of plan.sub
+  // samples.
   std::uint32_t dw_stride = 0;
   if (outer) {
     const std::size_t cstride = round_up(max_in - 1, 16);
-    dw_stride = static_cast<std::uint32_t>(round_up(k.blocking.dw_region * (cstride + 16) + cstride * plan.sub, 16));
+    dw_stride = static_cast<std::uint32_t>(round_up(k.blocking.dw_region * (cstride + 16), 16));
     const std::uint32_t max_out = std::max(m_width, m_n_output);
     const std::size_t items =
         std::size_t(plan.n_chunks) * ((max_out + k.blocking.dw_region - 1) / k.blocking.dw_region);
@@ -589,10 +599,16 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     const std::uint32_t n_out = layer_outputs(l);
     const std::uint32_t a_n = l == 0 ? 0 : m_width;
     const std::uint32_t regions = (n_out + k.blocking.dw_region - 1) / k.blocking.dw_region;
-    const std::uint32_t x_row = l == 0 || has_skip(l) ? 0 : m_n_input;  // x rows then the ones row
     const std::uint32_t x_n = (l == 0 || has_skip(l) ? m_n_input : 0) + (m_bias ? 1 : 0);
+    // Where the layer's inputs start in act: rows, or vectors of 16 columns when it is transposed.
+    std::uint32_t a_row = l == 0 ? 0u : m_n_input + 1 + (l - 1) * m_width;
+    std::uint32_t x_row = l == 0 || has_skip(l) ? 0 : m_n_input;  // x rows then the ones row
+    if (k.act_transposed) {  // x's vectors, then width / 16 per hidden layer; no ones row
+      a_row = l == 0 ? 0u : (round_up(m_n_input, 16) + (l - 1) * m_width) / 16;
+      x_row = 0;
+    }
     wk.args(plan.n_samples, plan.chunk_len, plan.n_chunks, plan.sub, ws->padded, ws->dz, l * m_width, n_out, ws->act,
-            l == 0 ? 0u : m_n_input + 1 + (l - 1) * m_width, a_n, x_row, x_n, ws->partial, np, layer_offset(l));
+            a_row, a_n, x_row, x_n, ws->partial, np, layer_offset(l));
     if (outer) wk.arg(16, ws->scratch).arg(17, dw_stride);
     // Few, long work-items: at least ~4 work-groups per compute unit for load balance, else groups of one. Only
     // these two sizes: a CPU driver builds a kernel for every work-group size it is launched with (PoCL: seconds
