@@ -563,7 +563,11 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
   ChunkPlan plan;
   plan.n_samples = n_tiles * kBatchTile;
   const std::size_t budget = std::max<std::size_t>(1, kMaxPartialFloats / np);
-  const std::size_t chunks = std::clamp<std::size_t>(std::min(wanted, budget), 1, n_tiles);
+  std::size_t chunks = std::clamp<std::size_t>(std::min(wanted, budget), 1, n_tiles);
+  // A whole number of chunks per compute unit: every chunk is one work-item of the same length, so 15 chunks on
+  // two cores leave one core idle for the last.
+  const std::size_t cus = std::max(1u, device.info().compute_units);
+  if (chunks > cus) chunks = chunks / cus * cus;
   plan.chunk_len = static_cast<std::uint32_t>((n_tiles + chunks - 1) / chunks) * kBatchTile;
   plan.n_chunks = (plan.n_samples + plan.chunk_len - 1) / plan.chunk_len;
   const bool outer = k.blocking.dw_vector == 1;
