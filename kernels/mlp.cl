@@ -141,8 +141,8 @@ inline void transpose16(float16* r) {
 // The transposed training workspace (ACT_T): vector v of `act` holds 16 input columns of the weight gradients
 // for every sample, [v][s][16] (vector v at act + v * padded * 16 floats): ACT_XV vectors of x (zero past
 // N_IN), then WIDTH / 16 per hidden layer; no ones row (the bias gradients are dZ sums). These are the
-// outer-product weight gradients' operands as they are (mlp_weight_grad_outer), which otherwise transposes
-// every block of feature-major rows it reads. SAVE_T(v, t, SRC, VALID) transposes the 16 values SRC of tile t
+// outer-product weight gradients' operands as they are (mlp_weight_grad_outer reads them directly).
+// SAVE_T(v, t, SRC, VALID) transposes the 16 values SRC of tile t
 // (SRC and VALID use i_, the column in the vector) and stores them to vector v.
 #define ACT_XV ((N_IN + 15) / 16)
 #define SAVE_T(v, t, SRC, VALID)                                                                 \
@@ -527,7 +527,7 @@ __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len
 //   act [v][s][0..15] = in[16 v + 0 .. 16 v + 15][s]      (NV = ceil(n_dw / 16) column vectors, zero past n_dw,
 //                                                         the inputs without the ones row of the bias)
 //
-// (Transposing feature-major rows here, block by block, cost a fifth of this kernel's time, its loads missing
+// (Transposing feature-major rows here, block by block, cost 12-20 % of this kernel's time, its loads missing
 // to memory; the forward pass transposes values it holds in registers.) The chunk's last block writes the
 // work-item's dW rows into its partial slot.
 //
