@@ -294,14 +294,17 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
 #define POS_SAVED(k, u) (((int16)(mk[u][k]) & LANE_BITS) != 0)
 #define SAVE_DZ(k, u, g) STREAM16(g, dzt + (k) * (size_t)padded + tile[u] * TILE)
 #define BACK_HIDDEN_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, POS_SAVED, SAVE_DZ)
+// A hidden layer's dZ in blocks of BWD_R rows (BLOCK: BACK_HIDDEN_BLOCK or the fused kernel's TRAIN_BACK_BLOCK),
+// the last block shorter when BWD_R does not divide WIDTH.
 #if WIDTH % BWD_R
-#define BACK_HIDDEN                                                                \
-  for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) BACK_HIDDEN_BLOCK(BWD_R, k0) \
-  BACK_HIDDEN_BLOCK(WIDTH % BWD_R, WIDTH - WIDTH % BWD_R)
+#define BACK_ROWS(BLOCK)                                               \
+  for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) BLOCK(BWD_R, k0) \
+  BLOCK(WIDTH % BWD_R, WIDTH - WIDTH % BWD_R)
 #else
-#define BACK_HIDDEN \
-  for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) BACK_HIDDEN_BLOCK(BWD_R, k0)
+#define BACK_ROWS(BLOCK) \
+  for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) BLOCK(BWD_R, k0)
 #endif
+#define BACK_HIDDEN BACK_ROWS(BACK_HIDDEN_BLOCK)
 
 // NR inputs k0.. of dL/dx from the input columns starting at column `xcol` of the layer (layer 0 or a skip),
 // rows xcol.. of its transposed block wt.
@@ -716,14 +719,7 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 #define POS_SCRATCH(k, u) (hprev[(k)*HS + (u)] > 0.0f)
 #define SAVE_NONE(k, u, g)
 #define TRAIN_BACK_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, POS_SCRATCH, SAVE_NONE)
-#if WIDTH % BWD_R
-#define TRAIN_BACK                                                                \
-  for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) TRAIN_BACK_BLOCK(BWD_R, k0) \
-  TRAIN_BACK_BLOCK(WIDTH % BWD_R, WIDTH - WIDTH % BWD_R)
-#else
-#define TRAIN_BACK \
-  for (uint k0 = 0; k0 + BWD_R <= WIDTH; k0 += BWD_R) TRAIN_BACK_BLOCK(BWD_R, k0)
-#endif
+#define TRAIN_BACK BACK_ROWS(TRAIN_BACK_BLOCK)
 
 // The FWD_T tiles of sub-group s of the group starting at tile tb: tile indices (clamped to the chunk), x
 // and dL/dx pointers (the sink for tiles past the chunk's end).
