@@ -142,8 +142,8 @@ inline void transpose16(float16* r) {
 // for every sample, [v][s][16] (vector v at act + v * padded * 16 floats): ACT_XV vectors of x (zero past
 // N_IN), then WIDTH / 16 per hidden layer; no ones row (the bias gradients are dZ sums). These are the
 // outer-product weight gradients' operands as they are (mlp_weight_grad_outer reads them directly).
-// SAVE_T(v, t, SRC, VALID) transposes the 16 values SRC of tile t
-// (SRC and VALID use i_, the column in the vector) and stores them to vector v.
+// SAVE_T(v, t, SRC, VALID) transposes the 16 values SRC of tile t (SRC and VALID use i_, the column in the
+// vector) and stores them to vector v.
 #define ACT_XV ((N_IN + 15) / 16)
 #define SAVE_T(v, t, SRC, VALID)                                                                 \
   {                                                                                              \
@@ -541,8 +541,8 @@ __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len
 // ---------------------------------------------------------------------------------------------------------
 
 // One tile of 16 samples of the inputs 16 v .. 16 v + 15 of a layer, transposed into dst[0 .. 15] (sample i's
-// 16 inputs as one float16; the fused training kernel's dW blocks). Input k is row a_row + k of its source for k < a_n,
-// else row x_row + k - a_n; SRC(row) loads the tile's float16 of a row; inputs past n_in are zero.
+// 16 inputs as one float16; the fused training kernel's dW blocks). Input k is row a_row + k of its source for
+// k < a_n, else row x_row + k - a_n; SRC(row) loads the tile's float16 of a row; inputs past n_in are zero.
 #define PACK_TILE(dst, v, n_in, a_n, a_row, x_row, SRC)                           \
   {                                                                               \
     float16 r_[16];                                                               \
