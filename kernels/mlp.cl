@@ -120,6 +120,19 @@ inline float16 hidden_act(float16 z) {
 #define SHUFFLE_HI(a, b) \
   (float16)(a.s8, b.s8, a.s9, b.s9, a.sa, b.sa, a.sb, b.sb, a.sc, b.sc, a.sd, b.sd, a.se, b.se, a.sf, b.sf)
 
+// The 16 float16s SRC (i_ = 0 .. 15; zero where VALID is false) transposed; STORE then stores row r_[i_] of the
+// result. SRC is read for every i_, so it must be safe to read where VALID is false (clamped indices).
+#define TRANSPOSED16(SRC, VALID, STORE)                       \
+  {                                                           \
+    float16 r_[16];                                           \
+    _Pragma("unroll") for (uint i_ = 0; i_ < 16; ++i_) {      \
+      const float16 x_ = (SRC);                               \
+      r_[i_] = (VALID) ? x_ : (float16)0.0f;                  \
+    }                                                         \
+    transpose16(r_);                                          \
+    _Pragma("unroll") for (uint i_ = 0; i_ < 16; ++i_) STORE; \
+  }
+
 inline void transpose16(float16* r) {
 #pragma unroll
   for (uint stage = 0; stage < 4; ++stage) {
@@ -145,14 +158,8 @@ inline void transpose16(float16* r) {
 // SAVE_T(v, t, SRC, VALID) transposes the 16 values SRC of tile t (SRC and VALID use i_, the column in the
 // vector) and stores them to vector v.
 #define ACT_XV ((N_IN + 15) / 16)
-#define SAVE_T(v, t, SRC, VALID)                                                                 \
-  {                                                                                              \
-    float16 r_[16];                                                                              \
-    _Pragma("unroll") for (uint i_ = 0; i_ < 16; ++i_) r_[i_] = (VALID) ? (SRC) : (float16)0.0f; \
-    transpose16(r_);                                                                             \
-    __global float* d_ = act + ((size_t)(v)*padded + (t)*TILE) * 16;                             \
-    _Pragma("unroll") for (uint i_ = 0; i_ < 16; ++i_) STREAM16(r_[i_], d_ + i_ * 16);           \
-  }
+#define SAVE_T(v, t, SRC, VALID) \
+  TRANSPOSED16(SRC, VALID, STREAM16(r_[i_], act + ((size_t)(v)*padded + (t)*TILE + i_) * 16))
 
 // ---------------------------------------------------------------------------------------------------------
 // Forward. One work-item = FWD_T tiles of 16 samples; all layers in registers/private memory (per feature k
@@ -543,17 +550,12 @@ __kernel void mlp_weight_grad_partial(const uint n_samples, const uint chunk_len
 // One tile of 16 samples of the inputs 16 v .. 16 v + 15 of a layer, transposed into dst[0 .. 15] (sample i's
 // 16 inputs as one float16; the fused training kernel's dW blocks). Input k is row a_row + k of its source for
 // k < a_n, else row x_row + k - a_n; SRC(row) loads the tile's float16 of a row; inputs past n_in are zero.
-#define PACK_TILE(dst, v, n_in, a_n, a_row, x_row, SRC)                           \
-  {                                                                               \
-    float16 r_[16];                                                               \
-    _Pragma("unroll") for (uint i_ = 0; i_ < 16; ++i_) {                          \
-      const uint k_ = min((v)*16 + i_, (n_in)-1);                                 \
-      const float16 x_ = SRC(k_ < (a_n) ? (a_row) + k_ : (x_row) + (k_ - (a_n))); \
-      r_[i_] = (v)*16 + i_ < (n_in) ? x_ : (float16)0.0f;                         \
-    }                                                                             \
-    transpose16(r_);                                                              \
-    _Pragma("unroll") for (uint i_ = 0; i_ < 16; ++i_)(dst)[i_] = r_[i_];         \
-  }
+inline uint pack_row(const uint k, const uint a_n, const uint a_row, const uint x_row) {
+  return k < a_n ? a_row + k : x_row + (k - a_n);
+}
+#define PACK_TILE(dst, v, n_in, a_n, a_row, x_row, SRC)                                                  \
+  TRANSPOSED16(SRC(pack_row(min((v)*16 + i_, (n_in)-1), (a_n), (a_row), (x_row))), (v)*16 + i_ < (n_in), \
+               (dst)[i_] = r_[i_])
 
 // The DW_RJ x NRK block of column vectors v0.. of the dW rows at cb (row i at cb + i * cs) over n samples:
 // input vector v's samples at VEC(v) (float16s), dZ row i at dzp[i]; `first` starts the accumulators from

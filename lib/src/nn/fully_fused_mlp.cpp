@@ -43,6 +43,13 @@ struct SplitMix {
   double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }  // [0, 1)
 };
 
+// Floats per sample of the training workspace's act before the inputs h_(l-1) of hidden layer l >= 1 (l =
+// n_hidden + 1: all of them): the feature-major rows [x, ones, h_0, ...], or, transposed for the outer-product
+// weight gradients, the vectors of x (zero-padded to 16 columns) and of every hidden layer, no ones row.
+std::size_t act_floats_before(bool transposed, std::uint32_t n_input, std::uint32_t width, std::uint32_t l) {
+  return (transposed ? round_up(n_input, 16) : n_input + 1) + std::size_t(width) * (l - 1);
+}
+
 struct ChunkPlan {
   std::uint32_t n_samples = 0, chunk_len = 1, n_chunks = 1, sub = 1;  // samples, multiples of kBatchTile
 };
@@ -54,7 +61,9 @@ class MlpWorkspace final : public Workspace {
   std::uint32_t padded = 0;  // batch capacity of act/dz (0 until forward())
   bool saved = false;        // forward() saved the activations into act (not for the fused training)
   // Feature-major (row f = feature f of every sample, `padded` floats per row): act holds the rows
-  // [x (n_input), ones, h_0 (width), ..., h_(L-1)], dz the rows [dZ_0 (width), ..., dZ_(L-1), dZ_out].
+  // [x (n_input), ones, h_0 (width), ..., h_(L-1)] (with the outer-product weight gradients the same features
+  // transposed in vectors of 16, without the ones row: act_floats_before), dz the rows
+  // [dZ_0 (width), ..., dZ_(L-1), dZ_out].
   Buffer<float> act, dz, partial;
   // The SIMD kernels' ReLU masks of the hidden layers (kernels/mlp.cl): [layer][tile][feature], bit s = sample s.
   Buffer<std::uint16_t> mask;
@@ -169,9 +178,9 @@ struct FullyFusedMLP::Kernels {
   KernelChoice choice;
   Blocking blocking;  // choice.blocking
   bool workgroup = false;
-  // The training workspace's activations transposed for the outer-product weight gradients (kernels/mlp.cl,
-  // SAVE_T): the SIMD kernels with dw_vector 1 (the widths are multiples of 16).
-  bool act_transposed = false;
+  // The outer-product weight gradients (the SIMD kernels with dw_vector 1); the training forward then saves the
+  // activations transposed for them (kernels/mlp.cl, SAVE_T; the widths are multiples of 16).
+  bool outer() const { return !workgroup && blocking.dw_vector == 1; }
   Kernel forward, backward, weight_grad, reduce, train, transpose;  // transpose: the SIMD kernels only
   std::size_t local_forward = 0, local_backward = 0, local_weight_grad = 0, local_reduce = 0;
 };
@@ -366,7 +375,6 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
                     {"DW_RK", std::to_string(b.dw_cols)},
                     {"DW_ROWS", std::to_string(b.dw_region)},
                     {"TRAIN_G", std::to_string(b.train_group)}});
-    k->act_transposed = b.dw_vector == 1;
     const Program program = device.program("mlp.cl", defines);
     k->forward = program.kernel("mlp_forward");
     k->backward = program.kernel("mlp_backward");
@@ -451,11 +459,7 @@ void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const 
     launch_forward(device, params, input, output, nullptr, 0);
     return;
   }
-  // Floats per sample of act: the feature-major rows [x, ones, h_0, ...], or the transposed vectors of x and
-  // of every hidden layer (kernels/mlp.cl, SAVE_T).
-  const std::size_t act_floats = kernels(device).act_transposed
-                                     ? round_up(m_n_input, 16) + std::size_t(m_width) * m_n_hidden
-                                     : std::size_t(m_width) * m_n_hidden + m_n_input + 1;
+  const std::size_t act_floats = act_floats_before(kernels(device).outer(), m_n_input, m_width, m_n_hidden + 1);
   if (input.padded() > ws->padded || ws->act.size() < std::size_t(ws->padded) * act_floats) {
     // Grow only: a training loop reuses its buffers.
     ws->padded = std::max(ws->padded, input.padded());
@@ -529,7 +533,7 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     // outer-product weight gradients every layer's dW rows (rows padded to a multiple of dw_rows, columns to 16)
     // and the group's transposed input rows.
     std::size_t acc16 = np;
-    if (k.blocking.dw_vector == 1) {
+    if (k.outer()) {
       std::size_t floats = 0, vectors = 0;
       for (std::uint32_t l = 0; l <= m_n_hidden; ++l) {  // the bias column apart (its own accumulators)
         const std::size_t cols = round_up(layer_inputs(l), 16);
@@ -570,7 +574,7 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
   if (chunks > cus) chunks = chunks / cus * cus;
   plan.chunk_len = static_cast<std::uint32_t>((n_tiles + chunks - 1) / chunks) * kBatchTile;
   plan.n_chunks = (plan.n_samples + plan.chunk_len - 1) / plan.chunk_len;
-  const bool outer = k.blocking.dw_vector == 1;
+  const bool outer = k.outer();
   plan.sub =
       outer ? kOuterBlock
             : static_cast<std::uint32_t>(std::clamp<std::size_t>(kSubChunkBytes / (std::size_t(max_in) * sizeof(float)),
@@ -604,13 +608,11 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     const std::uint32_t a_n = l == 0 ? 0 : m_width;
     const std::uint32_t regions = (n_out + k.blocking.dw_region - 1) / k.blocking.dw_region;
     const std::uint32_t x_n = (l == 0 || has_skip(l) ? m_n_input : 0) + (m_bias ? 1 : 0);
-    // Where the layer's inputs start in act: rows, or vectors of 16 columns when it is transposed.
-    std::uint32_t a_row = l == 0 ? 0u : m_n_input + 1 + (l - 1) * m_width;
-    std::uint32_t x_row = l == 0 || has_skip(l) ? 0 : m_n_input;  // x rows then the ones row
-    if (k.act_transposed) {  // x's vectors, then width / 16 per hidden layer; no ones row
-      a_row = l == 0 ? 0u : (round_up(m_n_input, 16) + (l - 1) * m_width) / 16;
-      x_row = 0;
-    }
+    // Where the layer's inputs start in act: rows, or with the outer-product form vectors of 16 columns (x's
+    // first, no ones row: its x_row is 0).
+    const std::uint32_t a_row =
+        l == 0 ? 0u : static_cast<std::uint32_t>(act_floats_before(outer, m_n_input, m_width, l) / (outer ? 16 : 1));
+    const std::uint32_t x_row = l == 0 || has_skip(l) || outer ? 0 : m_n_input;  // x rows then the ones row
     wk.args(plan.n_samples, plan.chunk_len, plan.n_chunks, plan.sub, ws->padded, ws->dz, l * m_width, n_out, ws->act,
             a_row, a_n, x_row, x_n, ws->partial, np, layer_offset(l));
     if (outer) wk.arg(16, ws->scratch).arg(17, dw_stride);
