@@ -63,6 +63,23 @@ inline float peak_host(std::size_t gid, unsigned iters, float c, unsigned lanes)
   return s;
 }
 
+/// The step count of a loop that runs about `target_seconds` (at least 1024, at most 2^30): `run(steps)` runs it
+/// and returns its seconds. The count grows 8x from 1024 until one run takes a quarter of the target (the first
+/// run, which may build code, is not timed), then is scaled to the target.
+template <class Run>
+std::uint32_t calibrated_iterations(double target_seconds, Run run) {
+  std::uint32_t iters = 1024;
+  run(iters);
+  for (;;) {
+    const double t = run(iters);
+    if (t >= target_seconds / 4 || iters >= (1u << 27)) {
+      const double scaled = double(iters) * target_seconds / std::max(t, 1e-9);
+      return std::uint32_t(std::clamp(scaled, 1024.0, double(1u << 30)));
+    }
+    iters *= 8;
+  }
+}
+
 /// One peak kernel (peak_fma_f16 or peak_fma_f8) sized so that a launch runs about `target_seconds`.
 ///
 /// A launch of a few milliseconds measures the device's start-up as much as its arithmetic: on a 2-core AVX-512
@@ -99,17 +116,10 @@ struct PeakKernel {
 
   /// Chooses `iters` for launches of about `target_seconds` (at least 1024 steps, at most 2^30).
   void calibrate(const Device& device, Buffer<float>& out, double target_seconds) {
-    iters = 1024;
-    launch(device, out);  // builds the work-group function of this local size
-    for (;;) {
-      const double t = launch(device, out);
-      if (t >= target_seconds / 4 || iters >= (1u << 27)) {
-        const double scaled = double(iters) * target_seconds / std::max(t, 1e-9);
-        iters = std::uint32_t(std::clamp(scaled, 1024.0, double(1u << 30)));
-        return;
-      }
-      iters *= 8;
-    }
+    iters = calibrated_iterations(target_seconds, [&](std::uint32_t n) {
+      iters = n;
+      return launch(device, out);
+    });
   }
 
   /// The worst error over tolerance of the last launch's results (<= 1 passes), checked on `checks` items.
