@@ -3,7 +3,7 @@
 // this machine: only an instruction with more multiply-adds per cycle than the float FMA can pay, and only if
 // the device's compiler emits it.
 //
-//   bench_isa [--smoke] [--device SEL] [--seconds S] [--reps N] [--out FILE]
+//   bench_isa [--smoke] [--device SEL] [--seconds S] [--reps N] [--out FILE]   (--help: the options)
 //
 // Host (one OpenMP thread per core, 12 independent chains of 512-bit registers per thread, best of --reps):
 //   fp32 FMA           vfmadd231ps   16 multiply-adds per instruction (AVX-512F)
@@ -19,6 +19,7 @@
 #include <relit/verify/peak_reference.hpp>
 
 #include <immintrin.h>
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 #include <omp.h>
 
@@ -26,7 +27,6 @@
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
 #include <functional>
 #include <iostream>
@@ -64,27 +64,30 @@ __attribute__((target("avx512f"))) double lane_sum(const __m512 (&a)[kChains]) {
   return sum;
 }
 
-__attribute__((target("avx512f"))) double fp32_fma(long steps, float one) {
-  const __m512 c = _mm512_set1_ps(one), b = _mm512_set1_ps(one);
-  __m512 a[kChains];
+// `steps` steps of the 12 chains a[i], each `update` (an expression of a[i]), the chains interleaved.
+#define CHAIN_STEPS(steps, update) \
+  for (long s_ = 0; s_ < (steps); ++s_) _Pragma("GCC unroll 12") for (int i = 0; i < kChains; ++i) update
+
+// Lane l of chain i starts at i * 16 + l.
+__attribute__((target("avx512f"))) void chain_starts(__m512 (&a)[kChains]) {
   for (int i = 0; i < kChains; ++i)
     a[i] = _mm512_add_ps(_mm512_set1_ps(float(i * 16)),
                          _mm512_setr_ps(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15));
-  for (long s = 0; s < steps; ++s)
-#pragma GCC unroll 12
-    for (int i = 0; i < kChains; ++i) a[i] = _mm512_fmadd_ps(a[i], c, b);
+}
+
+__attribute__((target("avx512f"))) double fp32_fma(long steps, float one) {
+  const __m512 c = _mm512_set1_ps(one), b = _mm512_set1_ps(one);
+  __m512 a[kChains];
+  chain_starts(a);
+  CHAIN_STEPS(steps, a[i] = _mm512_fmadd_ps(a[i], c, b));
   return lane_sum(a);
 }
 
 __attribute__((target("avx512f,avx512bf16"))) double bf16_dot(long steps, float one) {
   const __m512bh x = _mm512_cvtne2ps_pbh(_mm512_set1_ps(one), _mm512_set1_ps(one));  // 32 bf16 ones
   __m512 a[kChains];
-  for (int i = 0; i < kChains; ++i)
-    a[i] = _mm512_add_ps(_mm512_set1_ps(float(i * 16)),
-                         _mm512_setr_ps(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15));
-  for (long s = 0; s < steps; ++s)
-#pragma GCC unroll 12
-    for (int i = 0; i < kChains; ++i) a[i] = _mm512_dpbf16_ps(a[i], x, x);
+  chain_starts(a);
+  CHAIN_STEPS(steps, a[i] = _mm512_dpbf16_ps(a[i], x, x));
   return lane_sum(a);
 }
 
@@ -96,9 +99,7 @@ __attribute__((target("avx512f,avx512bw,avx512fp16"))) double fp16_fma(long step
     for (int l = 0; l < 32; ++l) start[l] = static_cast<_Float16>(i * 32 + l);
     a[i] = _mm512_load_ph(start);
   }
-  for (long s = 0; s < steps; ++s)
-#pragma GCC unroll 12
-    for (int i = 0; i < kChains; ++i) a[i] = _mm512_fmadd_ph(a[i], c, b);
+  CHAIN_STEPS(steps, a[i] = _mm512_fmadd_ph(a[i], c, b));
   double sum = 0;
   for (int i = 0; i < kChains; ++i) {
     alignas(64) _Float16 v[32];
@@ -270,28 +271,13 @@ nlohmann::json device_half(const Device& device, const Args& a) {
 
 int main(int argc, char** argv) try {
   Args a;
-  for (int i = 1; i < argc; ++i) {
-    auto next = [&]() -> std::string {
-      if (i + 1 >= argc) throw InvalidArgument(std::string(argv[i]) + " needs a value");
-      return argv[++i];
-    };
-    if (!std::strcmp(argv[i], "--smoke"))
-      a.smoke = true;
-    else if (!std::strcmp(argv[i], "--device"))
-      a.device = next();
-    else if (!std::strcmp(argv[i], "--seconds"))
-      a.seconds = std::stod(next());
-    else if (!std::strcmp(argv[i], "--reps"))
-      a.reps = std::stoi(next());
-    else if (!std::strcmp(argv[i], "--out"))
-      a.out = next();
-    else {
-      std::cerr << "usage: bench_isa [--smoke] [--device SEL] [--seconds S] [--reps N] [--out FILE]\n";
-      return 2;
-    }
-  }
-  if (!(a.seconds > 0 && a.seconds <= 60) || a.reps < 1 || a.reps > 100)
-    throw InvalidArgument("--seconds must be in (0, 60] and --reps in [1, 100]");
+  CLI::App app{"bench_isa: the CPU's multiply-add rates per precision beside the OpenCL device's float and half rates"};
+  app.add_flag("--smoke", a.smoke, "check every probe, time each briefly (as the test suite runs it)");
+  app.add_option("--device", a.device, "the OpenCL device (relit's selector syntax)");
+  app.add_option("--seconds", a.seconds, "length of one timed run")->check(CLI::Range(1e-3, 60.0));
+  app.add_option("--reps", a.reps, "timed runs per probe (the best counts)")->check(CLI::Range(1, 100));
+  app.add_option("--out", a.out, "write the JSON here (atomically) instead of to stdout");
+  CLI11_PARSE(app, argc, argv);
   nlohmann::json doc = {{"benchmark", "isa"}, {"host", run_host(a)}};
   const Device dev = Device::select(a.device);
   std::printf("device: %s\n", dev.info().description().c_str());
