@@ -3,7 +3,8 @@
 // (OpenMP). Every variant is verified against a double-precision reference before it is timed.
 //
 //   bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants fused,eigen,clblast]
-//   bench_mlp --blockings "T,R,B,V,RJ,RK,ROWS[,F[,G]];..." [--variants w64,w256] [--reps N]   (tuning: fused only)
+//   bench_mlp --blockings "T,R,B,V,RJ,RK,ROWS[,F[,G[,S]]];..." [--variants w64,w128,w256] [--reps N]
+//                                                                 (tuning: fused only; S 1: train_saved)
 //   bench_mlp --workgroups "S,N,RJ,RS,KT,DWT,DWR,DWS,DWC;..." [--batch N] ...    (tuning: the work-group kernels)
 //
 // FLOPs: 2 per multiply-add; forward = 2 * sum(in * out) per sample; training step = 3 x forward
@@ -445,7 +446,7 @@ NetResult bench_net(const Device& device, const NetSpec& spec, const Options& o)
 }
 
 // ------------------------------------------------------------------------------------------------------
-// Tuning modes (--blockings "T,R,B,V,RJ,RK,ROWS[,F[,G]];..." for the SIMD kernels, --workgroups
+// Tuning modes (--blockings "T,R,B,V,RJ,RK,ROWS[,F[,G[,S]]];..." for the SIMD kernels, --workgroups
 // "S,N,RJ,RS,KT,DWT,DWR,DWS,DWC;..." for the work-group kernels): the fused MLP with each setting (see
 // FullyFusedMLP::Blocking and ::WorkGroupParams), verified, then timed round-robin (one forward and one training
 // step of every setting per round) so that a loaded machine slows them all alike; medians over --reps rounds.
@@ -491,10 +492,11 @@ std::vector<std::vector<unsigned>> parse_lists(const std::string& list, int min,
 
 std::vector<KernelSetting> parse_settings(const Options& o) {
   std::vector<KernelSetting> out;
-  for (auto v : parse_lists(o.blockings, 7, 9, "--blockings (T,R,B,V,RJ,RK,ROWS[,F[,G]])")) {
-    if (v.size() < 8) v.push_back(0);  // F
-    if (v.size() < 9) v.push_back(8);  // G
-    out.push_back({FullyFusedMLP::Blocking{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]}, {}});
+  for (auto v : parse_lists(o.blockings, 7, 10, "--blockings (T,R,B,V,RJ,RK,ROWS[,F[,G[,S]]])")) {
+    if (v.size() < 8) v.push_back(0);   // F
+    if (v.size() < 9) v.push_back(8);   // G
+    if (v.size() < 10) v.push_back(0);  // S: the fused kernel reads the saved activations
+    out.push_back({FullyFusedMLP::Blocking{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9] != 0}, {}});
   }
   for (const auto& v : parse_lists(o.workgroups, 9, 9, "--workgroups (S,N,RJ,RS,KT,DWT,DWR,DWS,DWC)"))
     out.push_back({{}, FullyFusedMLP::WorkGroupParams{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]}});
@@ -590,7 +592,7 @@ int main(int argc, char** argv) {
           stderr,
           "usage: bench_mlp [--smoke] [--json out.json] [--device SELECTOR] [--reps N] [--variants "
           "fused,eigen,clblast] "
-          "[--blockings \"T,R,B,V,RJ,RK,ROWS[,F[,G]];...\"] [--workgroups \"S,N,RJ,RS,KT,DWT,DWR,DWS,DWC;...\"] "
+          "[--blockings \"T,R,B,V,RJ,RK,ROWS[,F[,G[,S]]];...\"] [--workgroups \"S,N,RJ,RS,KT,DWT,DWR,DWS,DWC;...\"] "
           "[--batch N]\n");
       return 2;
     }
@@ -616,8 +618,10 @@ int main(int argc, char** argv) {
     std::vector<NetSpec> specs = {{"small (3x64)", 32, 64, 3, 16, batch},
                                   {"paper (8x256)", 64, 256, 8, 16, o.smoke ? 200 : batch}};
     if (!o.blockings.empty() || !o.workgroups.empty()) {
+      // Tuning also covers relit bench's width-128 net (32 -> 4 x 128 -> 16), by name only (w128).
+      specs.insert(specs.begin() + 1, NetSpec{"mid (4x128)", 32, 128, 4, 16, batch});
       for (const auto& s : specs)
-        if (o.variants.find('w') == std::string::npos || o.wants(s.width >= 256 ? "w256" : "w64"))
+        if (o.variants.find('w') == std::string::npos ? s.width != 128 : o.wants("w" + std::to_string(s.width)))
           tune_net(device, s, o, peak);
       return verdict();
     }

@@ -41,6 +41,12 @@
 #ifndef DW_RJ
 #define DW_RJ 4
 #endif
+#ifndef TRAIN_SAVED
+#define TRAIN_SAVED 0
+#endif
+#if TRAIN_SAVED && DW_VEC != 1
+#error "TRAIN_SAVED needs the outer-product weight gradients (DW_VEC 1)"
+#endif
 #ifndef DW_RK
 #define DW_RK 2
 #endif
@@ -704,6 +710,12 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 // (cacc, 4 bytes per parameter instead of 64, so larger networks fit the cache), which the chunk's last group
 // copies to the partial slot.
 //
+// With TRAIN_SAVED (DW_VEC == 1 only) nothing is recomputed: the training forward saved the activations
+// transposed (SAVE_T) and the ReLU masks, as for the separate kernels; the dW blocks read the group's input
+// vectors there (saved_act, saved_padded samples per vector) and the backward blocks the masks (saved_mask).
+// Only dZ stays in the scratch: the separate kernels' dZ traffic is saved, and so is the recomputed forward
+// pass, for the saved activations' traffic.
+//
 // scratch (per work-item, scratch_stride floats apart, 64-byte aligned):
 //   acc   acc16 float16s             the accumulators: one per parameter i (the parameters' layout), or with
 //                                    DW_VEC == 1 cacc (fused_outer_offset) and pk
@@ -720,7 +732,11 @@ __kernel void mlp_reduce_chunks(const uint n, const uint n_chunks, __global cons
 // The fused training kernel: h_(l-1) from the scratch rows (hprev), dZ kept in gout only.
 #define POS_SCRATCH(k, u) (hprev[(k)*HS + (u)] > 0.0f)
 #define SAVE_NONE(k, u, g)
+#if TRAIN_SAVED
+#define TRAIN_BACK_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, POS_SAVED, SAVE_NONE)
+#else
 #define TRAIN_BACK_BLOCK(NR, k0) BACK_MASKED_BLOCK(NR, k0, POS_SCRATCH, SAVE_NONE)
+#endif
 #define TRAIN_BACK BACK_ROWS(TRAIN_BACK_BLOCK)
 
 // The FWD_T tiles of sub-group s of the group starting at tile tb: tile indices (clamped to the chunk), x
@@ -755,7 +771,9 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
                               __global const float* restrict wt_params, __global const float* restrict x,
                               __global const float* restrict y, __global const float* restrict dy,
                               __global float* restrict dx, const uint want_dx, __global float* restrict scratch,
-                              const uint scratch_stride, __global float* restrict partial, const uint partial_stride) {
+                              const uint scratch_stride, __global float* restrict partial, const uint partial_stride,
+                              __global const float* restrict saved_act, __global const ushort* restrict saved_mask,
+                              const uint saved_padded) {
   const size_t c = get_global_id(0);
   const size_t t_begin = c * chunk_tiles;
   if (t_begin >= n_tiles) return;
@@ -774,14 +792,20 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
   for (uint u = 0; u < TRAIN_G; ++u) rows[N_IN * TRAIN_G + u] = (float16)1.0f;
   // Finite values in the dZ rows a dW block reads past nout (the other layers' dZ later on).
   for (uint i = 0; i < 2 * GROWS * TRAIN_G; ++i) gbuf[i] = (float16)0.0f;
+#if TRAIN_SAVED
+  const uint padded = saved_padded;  // MASK_ROW's
+  __global const ushort* mask = saved_mask;
+#else
   const uint save = 0, padded = 0;  // the forward blocks keep their activations in the scratch only
   __global float* st = 0;
   __global ushort* mask = 0;
+#endif
 
   for (size_t tb = t_begin; tb < t_end; tb += TRAIN_G) {
     // The chunk's first group starts the accumulators from zero, its last one writes their lane sums to the
     // partial slot in place of storing them (no separate passes over the accumulators).
     const bool first_group = tb == t_begin, last_group = tb + TRAIN_G >= t_end;
+#if !TRAIN_SAVED
     // Forward through the hidden layers (the output y is the caller's, from forward()).
     for (uint sg = 0; sg < TRAIN_G / FWD_T; ++sg) {
       SUB_TILES(sg)
@@ -801,6 +825,7 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
 #endif
       }
     }
+#endif
 
     // dZ of the output layer; zero for samples past the batch and for tiles past the chunk's end.
     {
@@ -832,18 +857,28 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
         const uint n_dw = stride - BIAS, nv = (n_dw + 15) / 16, cs = nv * 16;
         __global float* cb_l = cacc + fused_outer_offset(l);
         __global float16* bacc = (__global float16*)(cb_l + (size_t)(nout + DW_RJ - 1) / DW_RJ * DW_RJ * cs);
+#if TRAIN_SAVED
+        // The input vectors as the training forward saved them (SAVE_T, as mlp_weight_grad_outer reads them):
+        // the group's samples are consecutive; only the chunk's tiles are read (the last group may be short).
+        const uint av = l == 0 ? 0 : ACT_XV + (l - 1) * (WIDTH / 16);
+        const uint n_group = (uint)min((size_t)TRAIN_G, t_end - tb) * TILE;
+#define PK_VEC(v) \
+  ((__global const float16*)saved_act + ((size_t)((v) < a_n / 16 ? av + (v) : (v)-a_n / 16) * padded + tb * TILE))
+#else
+        const uint n_group = TRAIN_G * TILE;
 #define SRC_ROWS(row) rows[(row)*HS + u]
         for (uint v = 0; v < nv; ++v)
           for (uint u = 0; u < TRAIN_G; ++u)
             PACK_TILE(pk + (size_t)v * TRAIN_G * TILE + u * TILE, v, n_dw, a_n, a_row, x_row, SRC_ROWS)
+#define PK_VEC(v) (pk + (size_t)(v)*TRAIN_G * TILE)
+#endif
         for (uint j0 = 0; j0 < nout; j0 += DW_RJ) {
           // dZ row j0 + i over the group's samples, HS float16s apart: constant offsets from one pointer (rows
           // past nout hold whatever is there; their dW rows are not written out).
           __global const float* dzp[DW_RJ];
 #pragma unroll
           for (uint i = 0; i < DW_RJ; ++i) dzp[i] = (__global const float*)(gin + (j0 + i) * HS);
-#define PK_VEC(v) (pk + (size_t)(v)*TRAIN_G * TILE)
-          OUTER_ROW(cb_l + (size_t)j0 * cs, cs, PK_VEC, TRAIN_G * TILE, first_group)
+          OUTER_ROW(cb_l + (size_t)j0 * cs, cs, PK_VEC, n_group, first_group)
         }
 #define DZ_VEC(d, j, row_stride, t) (d)[(j) * (row_stride) + (t)]
         BIAS_SUMS(bacc, nout, gin, HS, TRAIN_G, first_group)
@@ -907,8 +942,14 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
           WITH_CONST_NOUT(l, BACK_INPUT(l == TOP_SKIP))
         }
         if (l > 0) {
-          __global const float16* hprev = rows + a_row * HS + sg * FWD_T;
           __global float16* gout = gbuf + ((l + 1) & 1) * GROWS * HS + sg * FWD_T;
+#if TRAIN_SAVED
+          __global const ushort* mk[FWD_T];
+#pragma unroll
+          for (uint u = 0; u < FWD_T; ++u) mk[u] = MASK_ROW(mask, l - 1, tile[u]);
+#else
+          __global const float16* hprev = rows + a_row * HS + sg * FWD_T;
+#endif
           WITH_CONST_NOUT(l, TRAIN_BACK)
         }
       }

@@ -122,7 +122,8 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
   // AVX-512 register blockings and odd sizes (3 tiles per work-item, blocks that do not divide the widths),
   // each with the separate backward kernels and with the fused training kernel (forced for every network
   // size), and the outer-product weight gradients (dw_vector 1) with the Intel row's blocks and odd ones (every
-  // count of last column vectors, rows that do not divide the layers, several row regions); the work-group
+  // count of last column vectors, rows that do not divide the layers, several row regions), the fused kernel
+  // also reading the saved activations (train_saved: groups of 3 tiles, so that the last one is short); the work-group
   // variant with the NVIDIA row's parameters and odd ones (kWgOdd).
   constexpr std::uint32_t kAlways = 1u << 30;
   struct Kernels {
@@ -143,6 +144,7 @@ TEST_P(MlpCase, ForwardAndBackwardMatchReference) {
                                    {Blocking{4, 6, 6, 1, 8, 3, 256, kAlways, 16}, {}},
                                    {Blocking{1, 4, 4, 1, 5, 4, 10, 0, 3}, {}},
                                    {Blocking{1, 4, 4, 1, 5, 4, 10, kAlways, 3}, {}},
+                                   {Blocking{1, 4, 4, 1, 5, 4, 10, kAlways, 3, true}, {}},
                                    {Blocking{2, 5, 3, 1, 3, 2, 9, 0}, {}}};
   // PoCL's build of a work-group program grows with the group's size: for the 256-wide network the NVIDIA row's
   // 256 work-items take minutes on 2 cores, and the odd sizes' 40 about 65 s against 25 s for 7 items, so that
@@ -509,6 +511,8 @@ TEST(FullyFusedMLP, BlockingFollowsTheDevice) {
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 12, 4, 3, 16}), InvalidArgument);
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 10}), InvalidArgument);
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 1, 4, 5, 16}), InvalidArgument);
+  // Reading the saved activations needs them saved transposed: the outer-product form only.
+  EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{1, 4, 4, 8, 4, 3, 16, 1u << 30, 4, true}), InvalidArgument);
   const FullyFusedMLP::Blocking odd{3, 5, 3, 16, 3, 5, 9, 0, 9};
   EXPECT_THROW(s.net->set_blocking(FullyFusedMLP::Blocking{2, 4, 4, 8, 4, 3, 16, 0, 5}), InvalidArgument);
   s.net->set_blocking(odd);

@@ -91,14 +91,15 @@ double apply_activation(Activation a, double z) {
 bool FullyFusedMLP::Blocking::operator==(const Blocking& o) const {
   return forward_tiles == o.forward_tiles && forward_rows == o.forward_rows && backward_rows == o.backward_rows &&
          dw_vector == o.dw_vector && dw_rows == o.dw_rows && dw_cols == o.dw_cols && dw_region == o.dw_region &&
-         fused_train_max_params == o.fused_train_max_params && train_group == o.train_group;
+         fused_train_max_params == o.fused_train_max_params && train_group == o.train_group &&
+         train_saved == o.train_saved;
 }
 
 std::string FullyFusedMLP::Blocking::str() const {
   return "T" + std::to_string(forward_tiles) + " R" + std::to_string(forward_rows) + " B" +
          std::to_string(backward_rows) + " V" + std::to_string(dw_vector) + " " + std::to_string(dw_rows) + "x" +
          std::to_string(dw_cols) + "/" + std::to_string(dw_region) + " F" + std::to_string(fused_train_max_params) +
-         " G" + std::to_string(train_group);
+         " G" + std::to_string(train_group) + (train_saved ? " S" : "");
 }
 
 void FullyFusedMLP::set_blocking(std::optional<Blocking> blocking) {
@@ -116,6 +117,7 @@ void FullyFusedMLP::set_blocking(std::optional<Blocking> blocking) {
     check(b.dw_region >= b.dw_rows && b.dw_region % b.dw_rows == 0, "dw_region must be a multiple of dw_rows");
     check(b.train_group >= b.forward_tiles && b.train_group <= 64 && b.train_group % b.forward_tiles == 0,
           "train_group must be a multiple of forward_tiles, at most 64");
+    check(!b.train_saved || b.dw_vector == 1, "train_saved needs the outer-product weight gradients (dw_vector 1)");
   }
   std::lock_guard<std::mutex> lock(m_mutex);
   m_blocking = blocking;
@@ -374,7 +376,8 @@ const FullyFusedMLP::Kernels& FullyFusedMLP::kernels(const Device& device) const
                     {"DW_RJ", std::to_string(b.dw_rows)},
                     {"DW_RK", std::to_string(b.dw_cols)},
                     {"DW_ROWS", std::to_string(b.dw_region)},
-                    {"TRAIN_G", std::to_string(b.train_group)}});
+                    {"TRAIN_G", std::to_string(b.train_group)},
+                    {"TRAIN_SAVED", b.train_saved ? "1" : "0"}});
     const Program program = device.program("mlp.cl", defines);
     k->forward = program.kernel("mlp_forward");
     k->backward = program.kernel("mlp_backward");
@@ -453,7 +456,7 @@ void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const 
     throw InvalidArgument(
         "FullyFusedMLP::forward: the workspace was not made by this network's make_workspace "
         "for this device");
-  if (fused_training(device)) {  // backward() recomputes the activations: nothing to save
+  if (fused_training(device) && !kernels(device).blocking.train_saved) {  // backward() recomputes them
     ws->padded = std::max(ws->padded, input.padded());
     ws->saved = false;
     launch_forward(device, params, input, output, nullptr, 0);
@@ -546,11 +549,15 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     if (ws->scratch.size() < n_chunks * stride) ws->scratch = Buffer<float>(device, n_chunks * stride);
     if (ws->partial.size() < std::size_t(n_chunks) * np)
       ws->partial = Buffer<float>(device, std::size_t(n_chunks) * np);
+    const bool saved = k.blocking.train_saved;
+    if (saved && !ws->saved)
+      throw InvalidArgument("FullyFusedMLP::backward: call forward() with this workspace and batch first");
     Kernel tk = k.train;
     tk.args(n_tiles, batch, chunk_tiles, static_cast<std::uint32_t>(acc16), *params.buffer,
             static_cast<std::uint32_t>(params.offset), ws->wt, input.data(), output.data(), d_output.data(),
             d_input ? d_input->data() : ws->scratch, static_cast<std::uint32_t>(d_input ? 1 : 0), ws->scratch,
-            static_cast<std::uint32_t>(stride), ws->partial, np);
+            static_cast<std::uint32_t>(stride), ws->partial, np, saved ? ws->act : Buffer<float>(),
+            saved ? ws->mask : Buffer<std::uint16_t>(), static_cast<std::uint32_t>(saved ? ws->padded : 0));
     tk.launch(n_chunks, 1);
     reduce_chunks(n_chunks);
     return;

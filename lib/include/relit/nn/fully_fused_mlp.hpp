@@ -111,8 +111,12 @@ class FullyFusedMLP final : public Network {
     std::uint32_t fused_train_max_params = 0;
     std::uint32_t train_group =
         8;  ///< TRAIN_G: tiles per group of the fused training kernel, a multiple of forward_tiles
+    /// TRAIN_SAVED: the fused training kernel reads the activations and ReLU masks the training forward saved
+    /// (transposed, as the outer-product weight gradients read them) instead of recomputing the forward pass;
+    /// dZ still stays in the work-item's scratch. Needs dw_vector 1.
+    bool train_saved = false;
     bool operator==(const Blocking& o) const;
-    std::string str() const;  ///< "T2 R8 B8 V16 4x4/16 F16384 G8"
+    std::string str() const;  ///< "T2 R8 B8 V16 4x4/16 F16384 G8", " S" appended with train_saved
   };
   /// The blocking for a device: AVX-512 CPUs (16-float native vectors) get wider blocks than AVX2 CPUs and
   /// GPUs (docs/networks.md).
