@@ -62,11 +62,13 @@ constexpr Blocking kAvx512{4, 6, 6, 16, 8, 3, 24, 16384, 16};
 //    width-128 step 131.6 / 132.7 ms against 166.8 / 161.4 with the separate kernels (the width-256 trunk,
 //    2 MB of accumulators, was 8-12 % slower fused). On a 2-core Intel Xeon (AVX-512, 2 MB L2 per core).
 //    Since then the fused kernel reads the activations and ReLU masks the training forward saved (train_saved)
-//    instead of recomputing the forward pass, in groups of 8 tiles: the width-64 step 24.9 / 23.8 ms against
-//    27.8 / 27.1 recomputing in groups of 4, the width-128 step 117.8 / 110.6 against 130.2 / 131.5 (groups of
-//    4: 25.3 / 26.1 and 112.1 / 114.3); alternated in one bench_mlp --blockings run on a 2-core Xeon, model 207.
-//    The width-256 trunk fused this way (groups of 16 or 32) was no faster than the separate kernels.
-constexpr Blocking kAvx512Intel{4, 6, 6, 1, 8, 3, 256, 65536, 8, true};
+//    instead of recomputing the forward pass, in the same groups of 4 tiles, which gives the same gradients bit
+//    for bit: the width-64 step 23.1 / 22.4 ms against 28.7 / 27.4 recomputing, the width-128 step 96.7 / 93.8
+//    against 108.6 / 118.9 (relit bench, alternated, on a 2-core Xeon, model 207). Groups of 8 were as fast but
+//    change the reduction order, and with it the course of training (Ours + BRDF's 600-step test fit ended
+//    at 24.6 dB instead of 34.5; 36.6 with groups of 16). The width-256 trunk fused this way (groups of 16 or
+//    32) was no faster than the separate kernels.
+constexpr Blocking kAvx512Intel{4, 6, 6, 1, 8, 3, 256, 65536, 4, true};
 
 // Work-group parameters: samples, items, rows x cols register block, k_tile, dW tile / block / samples, dW
 // chunk.
