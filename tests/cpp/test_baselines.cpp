@@ -787,9 +787,11 @@ Json tiny_config(const std::string& method) {
     model["density_grid"] = {{"resolution", 32}, {"march_steps", 32}};  // the scene's 16³ resolved
   }
   // Bi et al. oscillates at Adam's 1e-2 (with the former L2 and isolated V its loss jumped between 0.02 and 1.3
-  // from step 200 on); 3e-3 is its preset's rate. The other methods are best at 1e-2. SrgbL2 as the `*-fast`
+  // from step 200 on); 3e-3 is its preset's rate. Ours + BRDF's fit of the spheres at 1e-2 depends on the MLP
+  // kernels' rounding alone (24.6-36.6 dB after 600 steps with four dW reduction orders, 21.9-34.6 after 1000);
+  // at 5e-3 it ended at 39.3-44.7 dB with the same four. The others are best at 1e-2. SrgbL2 as the `*-fast`
   // presets.
-  const double lr = method == "bi" ? 3e-3 : 1e-2;
+  const double lr = method == "bi" ? 3e-3 : method == "ours_brdf" ? 5e-3 : 1e-2;
   return {{"method", method},
           {"model", model},
           {"training",
@@ -831,10 +833,12 @@ TEST_P(MethodsTrain, TrainsToAStatedPsnrAndReloadsIdentically) {
   // Measured (SrgbL2; the baselines with the marched shadow and its gradient, as their presets): Bi et al. 37.6,
   // NeRV 35.1, Ours + BRDF 41.7 (spheres; 21.7-23.0 with L2 and V from its network), Ours 38.0 dB; the bars sit
   // about 3 dB lower. Ours + BRDF's fit of the spheres in 600 steps depends on the rounding of the MLP kernels
-  // that run: on one Intel Xeon it ended at 28.3, 34.7, 37.9 and 41.7 dB with four kernel variants (separate or
-  // fused backward, weight gradients with lanes of samples or of dW columns; all within the gradient tests'
-  // tolerances), and at 30.2-42.9 dB with learning rates of 5e-3 and 3e-3. Its bar sits below the lowest.
-  const std::map<std::string, double> bar{{"bi", 34.5}, {"nerv", 32.0}, {"ours_brdf", 26.0}, {"ours", 35.0}};
+  // that run: at Adam's 1e-2 on one Intel Xeon it ended at 28.3, 34.7, 37.9 and 41.7 dB with four kernel
+  // variants (separate or fused backward, weight gradients with lanes of samples or of dW columns; all within
+  // the gradient tests' tolerances) and on another at 24.6-36.6 dB with four group sizes of the fused kernel;
+  // at 5e-3 and 3e-3 at 30.2-42.9 dB, and at 5e-3 (its rate here) at 39.3-44.7 with the four group sizes. Its
+  // bar sits below the lowest of these.
+  const std::map<std::string, double> bar{{"bi", 34.5}, {"nerv", 32.0}, {"ours_brdf", 28.0}, {"ours", 35.0}};
   EXPECT_GT(after, bar.at(method));
   const auto model = method::load_model(dev, (out.path() / "checkpoint.relit").string());
   EXPECT_EQ(model->method(), method);
