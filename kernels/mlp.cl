@@ -164,6 +164,12 @@ inline void transpose16(float16* r) {
 // SAVE_T(v, t, SRC, VALID) transposes the 16 values SRC of tile t (SRC and VALID use i_, the column in the
 // vector) and stores them to vector v.
 #define ACT_XV ((N_IN + 15) / 16)
+#define ACT_HV(l) (ACT_XV + (l) * (WIDTH / 16))  // the first vector of hidden layer l
+// Vector v of a layer's inputs at sample s, as float16s: the a_n / 16 activation vectors from vector a_vec,
+// then the x vectors from x_vec (layer 0 and skips).
+#define SAVED_VEC(act, v, a_n, a_vec, x_vec, s) \
+  ((__global const float16*)(act) +             \
+   ((size_t)((v) < (a_n) / 16 ? (a_vec) + (v) : (x_vec) + (v) - (a_n) / 16) * padded + (s)))
 #define SAVE_T(v, t, SRC, VALID) \
   TRANSPOSED16(SRC, VALID, STREAM16(r_[i_], act + ((size_t)(v)*padded + (t)*TILE + i_) * 16))
 
@@ -260,8 +266,7 @@ __kernel void mlp_forward(const uint n_tiles, const uint padded, __global const 
     if (save)
 #pragma unroll
       for (uint u = 0; u < FWD_T; ++u)
-        for (uint v = 0; v < WIDTH / 16; ++v)
-          SAVE_T(ACT_XV + l * (WIDTH / 16) + v, tile[u], hout[(16 * v + i_) * HS + u], true)
+        for (uint v = 0; v < WIDTH / 16; ++v) SAVE_T(ACT_HV(l) + v, tile[u], hout[(16 * v + i_) * HS + u], true)
 #endif
   }
   {
@@ -651,10 +656,8 @@ __kernel void mlp_weight_grad_outer(const uint n_samples, const uint chunk_len, 
   for (uint ss = s0; ss < s1; ss += sub) {
     const uint len = min(sub, s1 - ss);  // a multiple of 16, like chunk_len and n_samples
     const bool first = ss == s0;
-    // The block's input vectors as the forward pass saved them (SAVE_T): vector v of the layer's inputs is
-    // vector a_row + v of act for the a_n / 16 activation vectors, then x_row + ... (x of layer 0 and skips).
-#define ACT_VEC(v) \
-  ((__global const float16*)act + ((size_t)((v) < a_n / 16 ? a_row + (v) : x_row + (v)-a_n / 16) * padded + ss))
+    // The block's input vectors as the forward pass saved them (SAVE_T; a_row and x_row count vectors).
+#define ACT_VEC(v) SAVED_VEC(act, v, a_n, a_row, x_row, ss)
     for (uint j0 = jr0; j0 < jr1; j0 += DW_RJ) {
       // Rows past the end repeat the last one; cbuf has room for them (DW_ROWS is a multiple of DW_RJ) and they
       // are never written out.
@@ -783,13 +786,17 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
   __global float16* rows = accv + acc16;
 #if DW_VEC == 1
   __global float* cacc = (__global float*)accv;
+#if !TRAIN_SAVED
   __global float16* pk = accv + fused_outer_offset(N_HIDDEN + 1) / 16;
+#endif
 #endif
   __global float16* gbuf = rows + N_ROWS * TRAIN_G;
   __global float* sink = (__global float*)(gbuf + 2 * GROWS * TRAIN_G);
   const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   __global float* out = partial + c * (size_t)partial_stride;
+#if !TRAIN_SAVED
   for (uint u = 0; u < TRAIN_G; ++u) rows[N_IN * TRAIN_G + u] = (float16)1.0f;
+#endif
   // Finite values in the dZ rows a dW block reads past nout (the other layers' dZ later on).
   for (uint i = 0; i < 2 * GROWS * TRAIN_G; ++i) gbuf[i] = (float16)0.0f;
 #if TRAIN_SAVED
@@ -860,10 +867,8 @@ __kernel void mlp_train_fused(const uint n_tiles, const uint batch, const uint c
 #if TRAIN_SAVED
         // The input vectors as the training forward saved them (SAVE_T, as mlp_weight_grad_outer reads them):
         // the group's samples are consecutive; only the chunk's tiles are read (the last group may be short).
-        const uint av = l == 0 ? 0 : ACT_XV + (l - 1) * (WIDTH / 16);
         const uint n_group = (uint)min((size_t)TRAIN_G, t_end - tb) * TILE;
-#define PK_VEC(v) \
-  ((__global const float16*)saved_act + ((size_t)((v) < a_n / 16 ? av + (v) : (v)-a_n / 16) * padded + tb * TILE))
+#define PK_VEC(v) SAVED_VEC(saved_act, v, a_n, l == 0 ? 0 : ACT_HV(l - 1), 0, tb * TILE)
 #else
         const uint n_group = TRAIN_G * TILE;
 #define SRC_ROWS(row) rows[(row)*HS + u]

@@ -405,6 +405,10 @@ bool FullyFusedMLP::fused_training(const Device& device) const {
   return !k.workgroup && n_params() <= k.blocking.fused_train_max_params;
 }
 
+bool FullyFusedMLP::recomputes_forward(const Device& device) const {
+  return fused_training(device) && !kernels(device).blocking.train_saved;
+}
+
 void FullyFusedMLP::check_input(const char* what, const BatchMatrix& input) const {
   if (input.cols() != m_n_input)
     throw InvalidArgument(std::string("FullyFusedMLP::") + what + ": the input has " + std::to_string(input.cols()) +
@@ -456,7 +460,7 @@ void FullyFusedMLP::forward(const Device& device, ConstParamSlice params, const 
     throw InvalidArgument(
         "FullyFusedMLP::forward: the workspace was not made by this network's make_workspace "
         "for this device");
-  if (fused_training(device) && !kernels(device).blocking.train_saved) {  // backward() recomputes them
+  if (recomputes_forward(device)) {  // nothing to save
     ws->padded = std::max(ws->padded, input.padded());
     ws->saved = false;
     launch_forward(device, params, input, output, nullptr, 0);
@@ -508,6 +512,8 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     if (!accumulate) grads.buffer->fill(0.0f, grads.offset, np);
     return;
   }
+  if (!ws->saved && !recomputes_forward(device))  // every other path reads what forward() saved
+    throw InvalidArgument("FullyFusedMLP::backward: call forward() with this workspace and batch first");
 
   const std::size_t wanted = kChunksPerComputeUnit * std::max(1u, device.info().compute_units);
   // The per-chunk partials in ws->partial, summed over chunks in a fixed order into the gradient slice.
@@ -534,7 +540,7 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
                              2 * round_up(std::max(m_width, m_n_output), k.blocking.dw_rows);
     // The accumulators (kernels/mlp.cl, mlp_train_fused), in float16s: one per parameter, or with the
     // outer-product weight gradients every layer's dW rows (rows padded to a multiple of dw_rows, columns to 16)
-    // and the group's transposed input rows.
+    // and, unless the kernel reads the saved activations, the group's transposed input rows.
     std::size_t acc16 = np;
     if (k.outer()) {
       std::size_t floats = 0, vectors = 0;
@@ -543,15 +549,13 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
         floats += round_up(layer_outputs(l), k.blocking.dw_rows) * cols + (m_bias ? 16 * layer_outputs(l) : 0);
         vectors = std::max(vectors, cols / 16);
       }
-      acc16 = floats / 16 + vectors * t * kBatchTile;
+      acc16 = floats / 16 + (k.blocking.train_saved ? 0 : vectors * t * kBatchTile);
     }
     const std::size_t stride = round_up(16 * (acc16 + rows * t + m_n_input), 16);
     if (ws->scratch.size() < n_chunks * stride) ws->scratch = Buffer<float>(device, n_chunks * stride);
     if (ws->partial.size() < std::size_t(n_chunks) * np)
       ws->partial = Buffer<float>(device, std::size_t(n_chunks) * np);
     const bool saved = k.blocking.train_saved;
-    if (saved && !ws->saved)
-      throw InvalidArgument("FullyFusedMLP::backward: call forward() with this workspace and batch first");
     Kernel tk = k.train;
     tk.args(n_tiles, batch, chunk_tiles, static_cast<std::uint32_t>(acc16), *params.buffer,
             static_cast<std::uint32_t>(params.offset), ws->wt, input.data(), output.data(), d_output.data(),
@@ -562,7 +566,6 @@ void FullyFusedMLP::backward(const Device& device, ConstParamSlice params, const
     reduce_chunks(n_chunks);
     return;
   }
-  if (!ws->saved) throw InvalidArgument("FullyFusedMLP::backward: call forward() with this workspace and batch first");
   if (k.workgroup) {
     backward_workgroup(device, params, output, d_output, grads, accumulate, d_input, *ws);
     return;

@@ -185,6 +185,8 @@ class FullyFusedMLP final : public Network {
   void launch_forward(const Device& device, ConstParamSlice params, const BatchMatrix& input, BatchMatrix& output,
                       Buffer<float>* act, std::uint32_t act_padded, const Buffer<std::uint16_t>* mask = nullptr) const;
   void check_input(const char* what, const BatchMatrix& input) const;
+  /// backward() runs the fused kernel that recomputes the forward pass: forward() saves nothing.
+  bool recomputes_forward(const Device& device) const;
   std::uint32_t layer_stride(std::uint32_t l) const;  ///< a weight row: layer_inputs(l), plus the bias
   void backward_workgroup(const Device& device, ConstParamSlice params, const BatchMatrix& output,
                           const BatchMatrix& d_output, ParamSlice grads, bool accumulate, BatchMatrix* d_input,
