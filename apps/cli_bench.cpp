@@ -29,7 +29,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <iostream>
 #include <map>
@@ -550,14 +549,6 @@ void add_e2e(std::vector<Case>& cases, const Device& device, bool quick, const s
 
 // ---- reporting ---------------------------------------------------------------------------------------------
 
-std::string machine_cpu() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown";
-}
-
 Json result_json(const Result& r, double peak) {
   Json j = {{"name", r.name}, {"family", r.family}, {"status", r.status}};
   if (r.status != "ok") {
@@ -649,14 +640,15 @@ int run_bench(const BenchOptions& o) {
   if (o.repeats == 0) throw InvalidArgument("--repeats must be at least 1");
   const std::vector<Device> devices =
       o.device.empty() ? std::vector<Device>{Device::select()} : Device::select_all(o.device);
-  Json doc = {{"format", "relit-bench"},
-              {"version", 1},
-              {"relit_version", relit::version()},
-              {"suite", o.suite},
-              {"quick", o.quick},
-              {"repeats", o.repeats},
-              {"machine", {{"cpu", machine_cpu()}, {"hardware_threads", std::thread::hardware_concurrency()}}},
-              {"devices", Json::array()}};
+  Json doc = {
+      {"format", "relit-bench"},
+      {"version", 1},
+      {"relit_version", relit::version()},
+      {"suite", o.suite},
+      {"quick", o.quick},
+      {"repeats", o.repeats},
+      {"machine", {{"cpu", reference::host_cpu_model()}, {"hardware_threads", std::thread::hardware_concurrency()}}},
+      {"devices", Json::array()}};
   char host[256] = "";
   if (gethostname(host, sizeof host - 1) == 0) doc["machine"]["hostname"] = host;
   int failures = 0;

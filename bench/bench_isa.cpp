@@ -28,7 +28,6 @@
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
 #include <functional>
 #include <iostream>
 #include <string>
@@ -151,13 +150,6 @@ double host_seconds(const HostProbe& p, long steps) {
   return slowest;
 }
 
-std::string cpu_model() {
-  std::ifstream in("/proc/cpuinfo");
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown";
-}
-
 int g_failures = 0;
 bool check(const std::string& what, double got, double want) {
   const bool ok = got == want;
@@ -174,7 +166,7 @@ double best_of(int reps, const std::function<double()>& seconds) {
 
 nlohmann::json run_host(const Args& a) {
   const int threads = omp_get_max_threads();
-  std::printf("host: %s, %d threads\n", cpu_model().c_str(), threads);
+  std::printf("host: %s, %d threads\n", reference::host_cpu_model().c_str(), threads);
   nlohmann::json probes = nlohmann::json::array();
   for (const HostProbe& p : host_probes()) {
     nlohmann::json j = {{"name", p.name}, {"instruction", p.instruction}, {"supported", p.supported}};
@@ -196,7 +188,7 @@ nlohmann::json run_host(const Args& a) {
                 p.instruction, gflops, gflops / threads, j["instructions_per_ns_per_thread"].get<double>());
     probes.push_back(j);
   }
-  return {{"cpu", cpu_model()}, {"threads", threads}, {"probes", probes}};
+  return {{"cpu", reference::host_cpu_model()}, {"threads", threads}, {"probes", probes}};
 }
 
 // ---------------------------------------------------------------------------------------------------------

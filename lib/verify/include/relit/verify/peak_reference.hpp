@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <fstream>
 #include <string>
 
 namespace relit::reference {
@@ -61,6 +62,15 @@ inline float peak_host(std::size_t gid, unsigned iters, float c, unsigned lanes)
   for (unsigned i = 0; i < kPeakChains; ++i)
     for (unsigned l = 0; l < lanes; ++l) s += peak_steps(peak_chain(gid, i, l), c, iters, [](float) {});
   return s;
+}
+
+/// The host CPU's model name ("model name" of /proc/cpuinfo, "unknown" without one), which the benchmarks
+/// report beside the peaks they measure.
+inline std::string host_cpu_model() {
+  std::ifstream in("/proc/cpuinfo");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  return "unknown";
 }
 
 /// The step count of a loop that runs about `target_seconds` (at least 1024, at most 2^30): `run(steps)` runs it
